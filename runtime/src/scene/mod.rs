@@ -1,0 +1,11 @@
+//! Scene description shared by every renderer: cameras, lights, rays, base meshes.
+
+pub mod aabb;
+pub mod camera;
+pub mod light;
+pub mod ray;
+
+pub use aabb::Aabb;
+pub use camera::{Camera, CameraError, CameraFrame, Projection, direction_from_angles};
+pub use light::{Light, LightError, LightSample};
+pub use ray::Ray;
