@@ -77,11 +77,16 @@ impl Flip {
 /// FLIP of `test` against `reference`, both tone-mapped as sRGB(clamp(exposure · L)).
 pub fn flip(test: &Image, reference: &Image, exposure: f32) -> Result<Flip, MetricError> {
     check(test, reference)?;
-    let r = nv_flip::FlipImageRgb8::with_data(reference.width, reference.height, &reference.to_srgb8(exposure));
-    let t = nv_flip::FlipImageRgb8::with_data(test.width, test.height, &test.to_srgb8(exposure));
+    Ok(flip_srgb8(&test.to_srgb8(exposure), &reference.to_srgb8(exposure), test.width, test.height))
+}
+
+/// FLIP of two 8-bit sRGB RGB images of `width` × `height` (row 0 first).
+pub fn flip_srgb8(test: &[u8], reference: &[u8], width: u32, height: u32) -> Flip {
+    let r = nv_flip::FlipImageRgb8::with_data(width, height, reference);
+    let t = nv_flip::FlipImageRgb8::with_data(width, height, test);
     let map = nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE);
     let mut pool = nv_flip::FlipPool::from_image(&map);
-    Ok(Flip { mean: pool.mean(), p95: pool.get_percentile(0.95, true), max: pool.max_value(), error_map: map.to_vec(), width: test.width, height: test.height })
+    Flip { mean: pool.mean(), p95: pool.get_percentile(0.95, true), max: pool.max_value(), error_map: map.to_vec(), width, height }
 }
 
 #[cfg(test)]

@@ -104,6 +104,20 @@ pub struct OutputArgs {
     pub exposure: f32,
 }
 
+impl OutputArgs {
+    /// Checks the output path and exposure before any work is done.
+    pub fn validate(&self) -> Result<()> {
+        match self.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            Some("png") | Some("exr") => {}
+            _ => bail!("{}: unknown image extension (use .exr or .png)", self.out.display()),
+        }
+        if !(self.exposure.is_finite() && self.exposure > 0.0) {
+            bail!("--exposure {} must be a positive number", self.exposure);
+        }
+        Ok(())
+    }
+}
+
 impl CameraArgs {
     /// The camera for a subject occupying `bounds`. Without flags: a perspective view
     /// of the subject from above and in front (θ = 50°, φ = −90°) that frames it.

@@ -34,6 +34,7 @@ pub struct RenderArgs {
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
+    args.output.validate()?;
     let mesh = Mesh::by_name(&args.mesh)?;
     let camera = args.camera.camera(mesh.bounds())?;
     let light = args.light.light()?;
