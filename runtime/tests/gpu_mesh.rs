@@ -138,3 +138,31 @@ fn storage_buffers_beyond_the_device_limit_are_refused() {
     assert_eq!(b.download().unwrap(), data);
     assert_clean(&device);
 }
+
+#[test]
+fn compute_dispatch_with_specialization_and_push_constants() {
+    use fabric_runtime::vk::{BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization};
+    let device = device();
+    let src = "#version 460\nlayout(local_size_x = 64) in;\nlayout(constant_id = 0) const uint SCALE = 1;\nlayout(push_constant) uniform P { uint count; uint offset; } pc;\nlayout(std430, set = 0, binding = 0) buffer B { uint v[]; };\nvoid main() {\n  uint i = gl_GlobalInvocationID.x;\n  if (i < pc.count) v[i] = v[i] * v[i] * SCALE + pc.offset;\n}\n";
+    let spirv = fabric_runtime::vk::shader::compile_glsl("square.comp", src, &[]).unwrap();
+    let module = ShaderModule::new(&device, "square", &spirv).unwrap();
+    let set_layout = DescriptorSetLayout::new(&device, &[BindingKind::StorageBuffer], vk::ShaderStageFlags::COMPUTE).unwrap();
+    let layout = Arc::new(PipelineLayout::new(&device, &[&set_layout], 8, vk::ShaderStageFlags::COMPUTE).unwrap());
+    let pipeline = Pipeline::compute(&device, "square", &module, &layout, &Specialization::new().u32(0, 3)).unwrap();
+    let n = 1000u32;
+    let input: Vec<u32> = (0..n).collect();
+    let buf = Buffer::new(&device, "values", (n * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu).unwrap();
+    buf.write_mapped(bytemuck::cast_slice(&input)).unwrap();
+    let set = DescriptorSet::new(&device, &set_layout, &[Resource::Buffer(&buf)]).unwrap();
+    device
+        .record_and_run("square", |rec| {
+            rec.bind_pipeline(&pipeline);
+            rec.bind_sets(&pipeline, &[&set]);
+            rec.push_constants(&pipeline, bytemuck::cast_slice(&[n, 7u32]));
+            rec.dispatch(n.div_ceil(64), 1, 1);
+        })
+        .unwrap();
+    let out: Vec<u32> = bytemuck::cast_slice(buf.mapped().unwrap()).to_vec();
+    assert!(out.iter().enumerate().all(|(i, &v)| v == (i * i * 3 + 7) as u32));
+    assert_clean(&device);
+}

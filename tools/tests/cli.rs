@@ -47,6 +47,8 @@ fn bad_flags_are_rejected_with_a_message() {
         (&["render", "--mesh", "teapot", "--out", "x.png"][..], "unknown mesh"),
         (&["render", "--out", "x.bmp"][..], "extension"),
         (&["render", "--light-dir", "0,0,0", "--out", "x.png"][..], "light"),
+        (&["render", "--device", "no-such-gpu", "--out", "x.png"][..], "no vulkan device matches 'no-such-gpu'"),
+        (&["render", "--exposure", "-1", "--out", "x.png"][..], "exposure"),
     ] {
         let o = fabric().args(args).current_dir(env!("CARGO_TARGET_TMPDIR")).output().unwrap();
         let stderr = String::from_utf8_lossy(&o.stderr);
