@@ -100,7 +100,7 @@ pub struct OutputArgs {
     #[arg(long, short)]
     pub out: std::path::PathBuf,
     /// Exposure applied before the sRGB mapping of PNG output.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub exposure: f32,
 }
 
