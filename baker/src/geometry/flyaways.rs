@@ -119,11 +119,11 @@ pub(crate) fn extract_flyaways(volume: &FabricVolume, density: &DensityScale, su
         if z < 0 || z >= nz as i64 {
             return 0.0;
         }
-        let (xi, yi) = (x.rem_euclid(nx as i64) as usize, y.rem_euclid(ny as i64) as usize);
+        let (xi, yi) = (wrap(x, nx), wrap(y, ny));
         if z as i32 > surface_top[xi + nx * yi] { density.coverage(volume.voxel(xi, yi, z as usize).density()) } else { 0.0 }
     };
-    // Disk radius: diameters up to ~3× the fiber thickness are measured unsaturated.
-    let radius = (1.5 * fiber_thickness + 1.0).ceil().clamp(2.0, 8.0) as i32;
+    // Disk radius: diameters up to ~2.5× the fiber thickness are measured unsaturated.
+    let radius = (fiber_thickness + 1.0).ceil().clamp(2.0, 8.0) as i32;
     let scale = anisotropy(volume);
     let rows: Vec<Vec<FlyawayVoxel>> = (0..ny)
         .into_par_iter()
@@ -174,24 +174,38 @@ pub(crate) fn extract_flyaways(volume: &FabricVolume, density: &DensityScale, su
 /// integral over them to within sinc⁴(τ/s) ≤ 0.2% (a hard slab instead sees 1 plane where
 /// there are 1.7 on average along a diagonal: −25% in d). `scale` is the cell size in
 /// z-voxel units (1, 1, 1 for cubes); τ = its largest edge.
-pub fn cross_section_diameter(p: [i64; 3], axis: Vec3, radius: i32, scale: Vec3, coverage: &dyn Fn(i64, i64, i64) -> f32) -> f32 {
+pub fn cross_section_diameter(p: [i64; 3], axis: Vec3, radius: i32, scale: Vec3, coverage: &impl Fn(i64, i64, i64) -> f32) -> f32 {
     let axis = axis.normalize_or(Vec3::Z);
     let tau = scale.max_element().max(1e-6);
     let r = radius as f32;
-    let reach = (Vec3::splat(r + 2.0 * tau) / scale).ceil();
-    let (rx, ry, rz) = (reach.x as i64, reach.y as i64, reach.z as i64);
+    let reach = (Vec3::splat(r + 2.0 * tau) / scale).ceil().to_array().map(|v| v as i64);
+    // Distance along the axis per index step on each grid axis. The innermost loop runs
+    // along the grid axis most aligned with the fiber, over just the cells inside the
+    // window |along| < 2τ (at most 4τ/|c_k| ≤ 7 of them): 2–3× fewer cells visited than
+    // the whole cube.
+    let c = (scale * axis).to_array();
+    let k = (0..3).max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs())).unwrap_or(2);
+    let (m1, m2) = ((k + 1) % 3, (k + 2) % 3);
     let mut weighted = 0.0f32;
-    for dz in -rz..=rz {
-        for dy in -ry..=ry {
-            for dx in -rx..=rx {
-                let d = Vec3::new(dx as f32, dy as f32, dz as f32) * scale;
+    for a in -reach[m1]..=reach[m1] {
+        for b in -reach[m2]..=reach[m2] {
+            let partial = a as f32 * c[m1] + b as f32 * c[m2];
+            let (t0, t1) = ((-2.0 * tau - partial) / c[k], (2.0 * tau - partial) / c[k]);
+            let lo = (t0.min(t1).ceil() as i64).max(-reach[k]);
+            let hi = (t0.max(t1).floor() as i64).min(reach[k]);
+            for t in lo..=hi {
+                let mut o = [0i64; 3];
+                o[k] = t;
+                o[m1] = a;
+                o[m2] = b;
+                let d = Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32) * scale;
                 let along = d.dot(axis);
                 if along.abs() >= 2.0 * tau || d.length_squared() - along * along > r * r {
                     continue;
                 }
-                let c = coverage(p[0] + dx, p[1] + dy, p[2] + dz);
-                if c > 0.0 {
-                    weighted += c * cubic_bspline(along / tau);
+                let cov = coverage(p[0] + o[0], p[1] + o[1], p[2] + o[2]);
+                if cov > 0.0 {
+                    weighted += cov * cubic_bspline(along / tau);
                 }
             }
         }
@@ -199,6 +213,19 @@ pub fn cross_section_diameter(p: [i64; 3], axis: Vec3, radius: i32, scale: Vec3,
     let cell = scale.x * scale.y * scale.z;
     let area = weighted * cell / tau;
     2.0 * (area / std::f32::consts::PI).sqrt()
+}
+
+/// `i` wrapped into [0, n) (periodic x and y); cheap for the small offsets of a disk.
+#[inline]
+pub(crate) fn wrap(i: i64, n: usize) -> usize {
+    let n = n as i64;
+    if i < 0 {
+        if i >= -n { (i + n) as usize } else { i.rem_euclid(n) as usize }
+    } else if i >= n {
+        if i < 2 * n { (i - n) as usize } else { i.rem_euclid(n) as usize }
+    } else {
+        i as usize
+    }
 }
 
 /// The centred cubic B-spline (support [−2, 2], integral 1).
@@ -267,6 +294,15 @@ mod tests {
         };
         let est = cross_section_diameter([10, 10, 10], Vec3::Y, 4, scale, &cov);
         assert!((est - 3.0).abs() < 0.2, "diameter {est}");
+    }
+
+    #[test]
+    fn wrap_is_rem_euclid() {
+        for n in [1usize, 3, 8] {
+            for i in -30i64..30 {
+                assert_eq!(wrap(i, n), i.rem_euclid(n as i64) as usize);
+            }
+        }
     }
 
     #[test]

@@ -27,7 +27,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::flyaways::cross_section_diameter;
+use super::flyaways::{cross_section_diameter, wrap};
 use super::{GeometryError, Progress};
 use crate::volume::FabricVolume;
 
@@ -325,7 +325,7 @@ pub fn estimate_fiber_thickness(volume: &FabricVolume, density: &DensityScale, p
         if z < 0 || z >= nz as i64 {
             return 0.0;
         }
-        let (xi, yi) = (x.rem_euclid(nx as i64) as usize, y.rem_euclid(ny as i64) as usize);
+        let (xi, yi) = (wrap(x, nx), wrap(y, ny));
         if is_candidate(xi, yi, z as usize) { density.coverage(volume.voxel(xi, yi, z as usize).density()) } else { 0.0 }
     };
     let saturated = 0.8 * 2.0 * THICKNESS_RADIUS as f32;
