@@ -109,6 +109,13 @@ impl FlyawayMask {
     pub fn count(&self) -> usize {
         self.bits.iter().map(|b| b.count_ones() as usize).sum()
     }
+
+    /// One bool per voxel in volume order, true for V: the form the reference
+    /// renderer's `MediumOptions::mask` takes (true = removed from the medium).
+    pub fn to_bools(&self) -> Vec<bool> {
+        let n = self.dims[0] * self.dims[1] * self.dims[2];
+        (0..n).map(|i| self.bits[i / 64] >> (i % 64) & 1 == 1).collect()
+    }
 }
 
 /// Collects V: the non-empty voxels above each column's surface top (`surface_top`,

@@ -278,6 +278,20 @@ impl Geometry {
         self.flyaways.mask()
     }
 
+    /// One bool per voxel in volume order, true above the surface (V and the halo
+    /// around it): the stricter "complement of V" for the surface fit's renderings.
+    pub fn above_surface_mask(&self) -> Vec<bool> {
+        let [nx, ny] = self.dims;
+        let mut mask = vec![false; nx * ny * self.depth];
+        for (column, &top) in self.surface_top.iter().enumerate() {
+            let from = (top + 1).max(0) as usize;
+            for z in from..self.depth {
+                mask[column + nx * ny * z] = true;
+            }
+        }
+        mask
+    }
+
     /// Range [min, max] of a map.
     pub fn range(map: &[f32]) -> [f32; 2] {
         map.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], &v| [lo.min(v), hi.max(v)])

@@ -119,6 +119,16 @@ fn flyaway_strands_above_a_body_are_all_found_and_nothing_else() {
     check_invariants(&g);
     let mask = g.flyaway_mask();
     assert_eq!(mask.count(), g.flyaways.len());
+    // The mask in the reference renderer's form, and the stricter above-surface mask:
+    // V ⊂ above surface, and no non-empty body voxel is above the surface (only the
+    // body's sub-threshold partial cells, which count as empty).
+    let bools = mask.to_bools();
+    let above = g.above_surface_mask();
+    assert_eq!(bools.iter().filter(|&&b| b).count(), g.flyaways.len());
+    assert!(bools.iter().zip(&above).all(|(&v, &a)| !v || a));
+    for (k, (&b, &a)) in body.iter().zip(&above).enumerate() {
+        assert!(!(b && a) || vol.voxels()[k].density() <= g.density.threshold, "body voxel {k} above the surface");
+    }
     let thr = g.density.threshold;
     // Every strand voxel above the threshold is in V.
     for &([x, y, z], _) in &strands {
