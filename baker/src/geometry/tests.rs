@@ -330,3 +330,35 @@ fn voxel_is_empty_agrees_with_zero_coverage() {
     assert_eq!(d.coverage(Voxel::EMPTY.density()), 0.0);
     assert_eq!(d.coverage(Voxel::pack(-0.0, Vec3::ONE, Vec3::X).density()), 0.0);
 }
+
+#[test]
+fn progress_reports_every_stage_and_reaches_each_total() {
+    use std::sync::Mutex;
+    #[derive(Default)]
+    struct Counter {
+        log: Mutex<Vec<(Stage, u64, u64)>>, // stage, total, done
+    }
+    impl Progress for Counter {
+        fn begin(&self, stage: Stage, total: u64) {
+            self.log.lock().unwrap().push((stage, total, 0));
+        }
+        fn advance(&self, n: u64) {
+            if let Some(last) = self.log.lock().unwrap().last_mut() {
+                last.2 += n;
+            }
+        }
+    }
+    let (mut vol, _) = sinusoid([48, 40, 24], 10.0);
+    add_fiber(&mut vol, Vec3::new(0.0, 20.3, 20.0), Vec3::X, 1.0, f32::INFINITY);
+    let counter = Counter::default();
+    extract_geometry_with(&vol, &GeometryOptions::default(), &counter).unwrap();
+    let log = counter.log.into_inner().unwrap();
+    let stages: Vec<Stage> = log.iter().map(|l| l.0).collect();
+    assert_eq!(
+        stages,
+        [Stage::DensityScale, Stage::FiberThickness, Stage::HeightMap, Stage::Flyaways, Stage::Autocorrelation, Stage::Blur, Stage::Normals, Stage::Tangents]
+    );
+    for (stage, total, done) in log {
+        assert_eq!(total, done, "{stage:?}");
+    }
+}
