@@ -19,6 +19,8 @@ enum Command {
     Devices(cmd::devices::DevicesArgs),
     /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
     Render(cmd::render::RenderArgs),
+    /// Open the GPU renderer in a window: orbit camera, live light and exposure.
+    View(cmd::view::ViewArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -26,6 +28,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Devices(a) => cmd::devices::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::View(a) => cmd::view::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -2,3 +2,4 @@
 
 pub mod devices;
 pub mod render;
+pub mod view;
