@@ -21,6 +21,8 @@ enum Command {
     Render(cmd::render::RenderArgs),
     /// Open the GPU renderer in a window: orbit camera, live light and exposure.
     View(cmd::view::ViewArgs),
+    /// Extract the hybrid geometry (h0, h, normal/tangent maps, flyaways) from a fabric volume.
+    Geometry(cmd::geometry::GeometryArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -29,6 +31,7 @@ fn main() -> std::process::ExitCode {
         Command::Devices(a) => cmd::devices::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),
+        Command::Geometry(a) => cmd::geometry::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
