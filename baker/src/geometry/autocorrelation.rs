@@ -16,13 +16,16 @@
 //!
 //! "Robustly in the presence of noise": a random (felt-like) height map also has bumps
 //! in C, from its large-scale swells, and on a small tile they reach 0.2. A peak counts
-//! only when (a) it is a real feature of the curve (topographic prominence) and (b) it is
-//! significant against the null hypothesis "h0 is a stationary random field with this
-//! correlation": by Bartlett's formula the sampling error of C at a lag beyond the
-//! correlation length has variance ≈ (1/N) Σ_{u,v} ρ(u, v)², which we estimate from the
-//! central lobes of C0 and C1 (lags before their first zero crossing), taking ρ as
-//! separable. A weave's yarn peak lies tens of standard errors out; a felt's bumps
-//! within two or three.
+//! only when (a) it is a real feature of the curve (topographic prominence) and (b) the
+//! repetition it stands for is significant against the null hypothesis "h0 is a
+//! stationary random field with this correlation" ([`first_peak`]): by Bartlett's formula
+//! the sampling error of C at a lag beyond the correlation length has variance
+//! ≈ (1/N) Σ_{u,v} ρ(u, v)², which we estimate from the central lobes (lags before the
+//! first zero crossing) of the 1D autocorrelations, taking ρ as separable. A weave's
+//! height is largely additive, warp profile f(x) plus weft profile g(y), whose
+//! correlations never decay along the other axis; so the random field of the null is h
+//! less its row and column mean profiles (which barely changes a felt: its profiles
+//! average out), and its noise enters C scaled by its share of h's variance.
 
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
@@ -34,8 +37,8 @@ use super::GeometryError;
 pub struct Autocorrelation {
     pub c0: Vec<f32>,
     pub c1: Vec<f32>,
-    /// Standard error of C at lags beyond the correlation length if h0 were a random
-    /// field (module docs).
+    /// Standard error of C at lags beyond the correlation length due to h0's random part
+    /// (module docs).
     pub null_sd: f32,
 }
 
@@ -63,9 +66,9 @@ pub struct PeakSearch {
     /// Smallest lag that can be a pattern period, in texels (default 2: below that it
     /// is fiber-level noise, not a yarn).
     pub min_lag: usize,
-    /// A peak's C must be at least this many null standard errors
-    /// ([`Autocorrelation::null_sd`]). Default 4: ~10⁻⁴ false alarms over the dozen
-    /// independent lags of a tile.
+    /// A peak's periodic contrast must be at least this many null standard errors
+    /// ([`first_peak`], [`Autocorrelation::null_sd`]). Default 4: ~10⁻⁴ false alarms
+    /// over the dozen independent lags of a tile.
     pub min_significance: f32,
 }
 
@@ -107,8 +110,20 @@ pub fn autocorrelate(h: &[f32], nx: usize, ny: usize) -> Option<Autocorrelation>
         let c00 = c[0];
         c.into_iter().map(|v| (v / c00).clamp(-1.0, 1.0) as f32).collect()
     };
+    let total_energy = c0[0];
     let (c0, c1) = (norm(c0), norm(c1));
-    let null_sd = ((lobe_energy(&c0) * lobe_energy(&c1)) / (nx * ny) as f64).sqrt() as f32;
+    // The null's random field: h minus its row and column mean profiles (module docs).
+    let row_mean: Vec<f64> = (0..ny).map(|j| centered[j * nx..(j + 1) * nx].iter().sum::<f64>() / nx as f64).collect();
+    let col_mean: Vec<f64> = (0..nx).map(|i| (0..ny).map(|j| centered[i + nx * j]).sum::<f64>() / ny as f64).collect();
+    let residual: Vec<f64> = (0..nx * ny).map(|k| centered[k] - row_mean[k / nx] - col_mean[k % nx]).collect();
+    let residual_t: Vec<f64> = (0..nx * ny).map(|k| residual[(k / ny) + nx * (k % ny)]).collect();
+    let (r0, r1) = (line_autocorrelation(&residual, nx, ny), line_autocorrelation(&residual_t, ny, nx));
+    let null_sd = if r0[0] > 1e-12 * total_energy {
+        let random_share = r0[0] / total_energy;
+        random_share * ((lobe_energy(&norm(r0)) * lobe_energy(&norm(r1))) / (nx * ny) as f64).sqrt()
+    } else {
+        0.0
+    } as f32;
     Some(Autocorrelation { c0, c1, null_sd })
 }
 
@@ -153,19 +168,34 @@ fn line_autocorrelation(data: &[f64], n: usize, lines: usize) -> Vec<f64> {
 /// texels with sub-texel precision, or `None` for unpatterned input. `null_sd` is the
 /// standard error of C under the random-field null hypothesis (module docs).
 ///
-/// Searches lags in [min_lag, n/2] (C is symmetric, C[x] = C[n − x]); a lag is a peak
-/// when it is a local maximum with C ≥ `min_significance` · `null_sd` (a repetition
-/// correlates positively, beyond what a random field would by chance) whose
-/// prominence (as in topography: height above the higher of the lowest points on the
-/// way to higher ground on either side) is at least `min_prominence` of C's range over
-/// [min_lag, n − min_lag]. The location is refined by a parabola through the maximum and
-/// its two neighbours.
+/// Searches lags P in [min_lag, n/2] (C is symmetric, C[x] = C[n − x]) for a local
+/// maximum with C > 0 that passes two tests:
+/// - it is a feature of the curve: its prominence (as in topography: height above the
+///   higher of the lowest points on the way to higher ground on either side) is at least
+///   `min_prominence` of C's range over [min_lag, n − min_lag];
+/// - it is a repetition beyond chance: a period P makes C high at every multiple m·P and
+///   low halfway between, so the mean contrast K = mean_m [C(m·P) − C((m − ½)·P)] over
+///   the M multiples within n/2 is compared with its standard error under the null,
+///   √2·null_sd/√M, and must reach `min_significance` of it. Using every multiple is what
+///   separates a weave (a dozen peaks in a row) from a random bump on a small tile (one);
+///   using contrasts, not values, keeps C that never decays (stripes along the other
+///   axis hold it high at every lag) from passing. The contrast must also reach
+///   `min_prominence` of the range, so a pattern with no random part (null_sd = 0) still
+///   needs a real swing.
+///
+/// The location is refined by a parabola through the maximum and its two neighbours.
 pub fn first_peak(c: &[f32], null_sd: f32, search: &PeakSearch) -> Option<f32> {
     let n = c.len();
     if n < 2 * search.min_lag.max(1) + 1 {
         return None;
     }
     let at = |k: isize| c[k.rem_euclid(n as isize) as usize];
+    // C at a fractional lag, linearly interpolated, periodic.
+    let lerp = |x: f64| {
+        let k = x.floor();
+        let f = (x - k) as f32;
+        at(k as isize) * (1.0 - f) + at(k as isize + 1) * f
+    };
     let tail = &c[search.min_lag..=n - search.min_lag];
     let hi = tail.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let lo = c.iter().copied().fold(f32::INFINITY, f32::min);
@@ -176,7 +206,7 @@ pub fn first_peak(c: &[f32], null_sd: f32, search: &PeakSearch) -> Option<f32> {
     for x in search.min_lag..=n / 2 {
         let v = c[x];
         // Plateaus: a run of equal values counts once, at its first lag.
-        if !(v > 0.0 && v >= search.min_significance * null_sd && v > at(x as isize - 1) && v >= at(x as isize + 1)) {
+        if !(v > 0.0 && v > at(x as isize - 1) && v >= at(x as isize + 1)) {
             continue;
         }
         // Left: C[0] = 1 is the global maximum, so the left base is min C[0..x].
@@ -191,11 +221,18 @@ pub fn first_peak(c: &[f32], null_sd: f32, search: &PeakSearch) -> Option<f32> {
             right_base = right_base.min(w);
         }
         let prominence = v - left_base.max(right_base);
-        if prominence >= search.min_prominence * range {
-            let (l, r) = (at(x as isize - 1) as f64, at(x as isize + 1) as f64);
-            let denom = l - 2.0 * v as f64 + r;
-            let offset = if denom < 0.0 { (0.5 * (l - r) / denom).clamp(-0.5, 0.5) } else { 0.0 };
-            return Some((x as f64 + offset) as f32);
+        if prominence < search.min_prominence * range {
+            continue;
+        }
+        let (l, r) = (at(x as isize - 1) as f64, at(x as isize + 1) as f64);
+        let denom = l - 2.0 * v as f64 + r;
+        let offset = if denom < 0.0 { (0.5 * (l - r) / denom).clamp(-0.5, 0.5) } else { 0.0 };
+        let period = x as f64 + offset;
+        let multiples = ((n / 2) as f64 / period).floor().max(1.0) as usize;
+        let contrast = (1..=multiples).map(|m| lerp(m as f64 * period) - lerp((m as f64 - 0.5) * period)).sum::<f32>() / multiples as f32;
+        let standard_error = std::f32::consts::SQRT_2 * null_sd / (multiples as f32).sqrt();
+        if contrast >= search.min_significance * standard_error && contrast >= search.min_prominence * range {
+            return Some(period as f32);
         }
     }
     None
@@ -257,10 +294,19 @@ mod tests {
             })
             .collect();
         assert_eq!(first_peak(&c, 0.01, &s), None);
-        // A clear bump that a random field of this tile could make by chance: not a peak.
+        // A period of 32 (two repeats within n/2, contrast 1.2) is significant when the
+        // null standard error is 0.1 (threshold 4·√2·0.1/√2 = 0.4), not when it is 0.35.
         let c: Vec<f32> = (0..128).map(|x| 0.6 * (std::f32::consts::TAU * x as f32 * 4.0 / 128.0).cos() + if x == 0 { 0.4 } else { 0.0 }).collect();
-        assert!(first_peak(&c, 0.1, &s).is_some());
-        assert_eq!(first_peak(&c, 0.2, &s), None);
+        assert!((first_peak(&c, 0.1, &s).unwrap() - 32.0).abs() < 0.1);
+        assert_eq!(first_peak(&c, 0.35, &s), None);
+        // A single bump at n/2 (one "repeat") on a decayed curve needs its value alone to
+        // stand out: 0.2 is not enough against 0.08 (4·√2·0.08 = 0.45).
+        let c: Vec<f32> = (0..96).map(|x| {
+            let d = x.min(96 - x) as f32;
+            (-d / 4.0).exp() + 0.2 * (-((d - 48.0) / 6.0).powi(2)).exp()
+        }).collect();
+        assert_eq!(first_peak(&c, 0.08, &s), None);
+        assert!(first_peak(&c, 0.02, &s).is_some());
     }
 
     #[test]

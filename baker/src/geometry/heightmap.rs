@@ -21,13 +21,19 @@
 //!   default). Interpolating the ρ = ρ_ref/2 crossing between cell centres instead is off
 //!   by up to 0.08 voxel on a flat surface and more on slopes; the z index alone by up
 //!   to a whole voxel.
-//! - A column with no run thick enough is a hole: h0 = 0 (the bottom face), and all its
-//!   non-empty voxels belong to V.
+//! - A column with no run thick enough (the paper leaves h0 undefined there) is common in
+//!   fiber-resolved volumes: yarn edges thin to a fiber, porous felt has gaps in every
+//!   column. Such a column takes its surface from its neighbourhood ([`fill_holes`]):
+//!   the top of its own material at or below the neighbours' level; only a column with
+//!   no material there is a hole through the fabric, h0 = 0 (the bottom face), and all
+//!   its non-empty voxels belong to V.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::flyaways::{cross_section_diameter, wrap};
+use super::blur;
+use super::cross_section::CrossSection;
+use super::flyaways::wrap;
 use super::{GeometryError, Progress};
 use crate::volume::FabricVolume;
 
@@ -139,6 +145,8 @@ pub struct HeightMap {
     /// Index of the top voxel of the surface run, −1 for holes.
     pub surface_top: Vec<i32>,
     pub hole_columns: usize,
+    /// Columns without a thick run whose surface was found at their neighbours' level.
+    pub filled_columns: usize,
     /// Columns whose surface run starts in the top slab.
     pub clipped_columns: usize,
     /// Thickness of the thickest run anywhere (for the "no surface" error).
@@ -184,23 +192,14 @@ pub(crate) fn detailed_height(volume: &FabricVolume, density: &DensityScale, run
                     if top[i] < 0 {
                         return 0.0;
                     }
-                    let zt = top[i] as usize;
-                    let mut profile = [0f32; SUBVOXEL_CELLS];
-                    for (k, p) in profile.iter_mut().enumerate().take(zt + 1) {
-                        let rho = volume.voxel(i, j, zt - k).density();
-                        if rho <= density.threshold {
-                            break; // end of the run
-                        }
-                        *p = rho;
-                    }
-                    subvoxel_height(zt, &profile)
+                    surface_height(volume, density, i, j, top[i] as usize)
                 })
                 .collect();
             progress.advance(1);
             (h0, top, thickest)
         })
         .collect();
-    let mut hm = HeightMap { h0: Vec::with_capacity(nx * ny), surface_top: Vec::with_capacity(nx * ny), hole_columns: 0, clipped_columns: 0, thickest_run: 0.0 };
+    let mut hm = HeightMap { h0: Vec::with_capacity(nx * ny), surface_top: Vec::with_capacity(nx * ny), hole_columns: 0, filled_columns: 0, clipped_columns: 0, thickest_run: 0.0 };
     for (h0, top, thickest) in rows {
         hm.h0.extend(h0);
         hm.surface_top.extend(top);
@@ -209,6 +208,62 @@ pub(crate) fn detailed_height(volume: &FabricVolume, density: &DensityScale, run
     hm.hole_columns = hm.surface_top.iter().filter(|&&t| t < 0).count();
     hm.clipped_columns = hm.surface_top.iter().filter(|&&t| t == nz as i32 - 1).count();
     hm
+}
+
+/// Gives the columns without a surface run the surface of their neighbourhood.
+///
+/// The neighbours' level L is the normalized Gaussian interpolation of h0 over the
+/// columns that have a surface run, L = G∗(h0·valid) / G∗valid with σ = `sigma` texels
+/// (periodic); where no such column lies within reach, the mean of h0 over them. The
+/// column's surface is then the top of its own material that starts at or below
+/// L + fiber/2 (a thin yarn edge or a gap-riddled felt column at the level of its
+/// neighbours belongs to the surface; material higher up is V). With no material there
+/// the column is a hole through the fabric: h0 = 0.
+pub(crate) fn fill_holes(volume: &FabricVolume, density: &DensityScale, hm: &mut HeightMap, fiber_thickness: f32, sigma: f32) {
+    let [nx, ny, nz] = volume.dims();
+    if hm.hole_columns == 0 || hm.hole_columns == nx * ny {
+        return;
+    }
+    let valid: Vec<f32> = hm.surface_top.iter().map(|&t| if t >= 0 { 1.0 } else { 0.0 }).collect();
+    let weighted: Vec<f32> = hm.h0.iter().zip(&valid).map(|(h, v)| h * v).collect();
+    let num = blur::periodic_gaussian(&weighted, nx, ny, [sigma; 2]);
+    let den = blur::periodic_gaussian(&valid, nx, ny, [sigma; 2]);
+    let mean = weighted.iter().map(|&v| v as f64).sum::<f64>() / valid.iter().map(|&v| v as f64).sum::<f64>();
+    let filled: Vec<Option<(i32, f32)>> = (0..nx * ny)
+        .into_par_iter()
+        .map(|c| {
+            if hm.surface_top[c] >= 0 {
+                return None;
+            }
+            let level = if den[c] > 1e-3 { num[c] / den[c] } else { mean as f32 };
+            let limit = level + 0.5 * fiber_thickness;
+            let (i, j) = (c % nx, c / nx);
+            let top = (0..nz).rev().find(|&z| (z as f32) < limit && volume.voxel(i, j, z).density() > density.threshold)?;
+            Some((top as i32, surface_height(volume, density, i, j, top)))
+        })
+        .collect();
+    for (c, f) in filled.into_iter().enumerate() {
+        if let Some((top, h)) = f {
+            hm.surface_top[c] = top;
+            hm.h0[c] = h;
+            hm.filled_columns += 1;
+            hm.hole_columns -= 1;
+        }
+    }
+    hm.clipped_columns = hm.surface_top.iter().filter(|&&t| t == nz as i32 - 1).count();
+}
+
+/// Sub-voxel h0 of the run whose top cell is `zt` in column (i, j).
+fn surface_height(volume: &FabricVolume, density: &DensityScale, i: usize, j: usize, zt: usize) -> f32 {
+    let mut profile = [0f32; SUBVOXEL_CELLS];
+    for (k, p) in profile.iter_mut().enumerate().take(zt + 1) {
+        let rho = volume.voxel(i, j, zt - k).density();
+        if rho <= density.threshold {
+            break; // end of the run
+        }
+        *p = rho;
+    }
+    subvoxel_height(zt, &profile)
 }
 
 /// Cells at the top of a surface run that the sub-voxel height looks at.
@@ -248,101 +303,57 @@ pub(crate) fn subvoxel_height(zt: usize, profile: &[f32; SUBVOXEL_CELLS]) -> f32
 }
 
 /// Largest number of voxels whose cross-section is measured for the thickness estimate
-/// (evenly spread by a hash of the voxel index; 2·10⁴ pins the mode to ±0.1 voxel).
+/// (evenly spread by a hash of the voxel index).
 const THICKNESS_SAMPLES: u64 = 20_000;
-/// Radius of the cross-section disk in voxels: fibers up to ~10 voxels thick are
-/// measured; a packed region fills the disk and is recognized as not one fiber.
-const THICKNESS_RADIUS: i32 = 6;
-/// Fewer measured fibers than this and the estimate is not trusted.
+/// Radius of the measured cross-sections (voxels): fibers up to ~18 voxels thick plateau
+/// inside it.
+const THICKNESS_RADIUS: f32 = 12.0;
+/// Fewer isolated fibers than this and the estimate is not trusted.
 const THICKNESS_MIN_SAMPLES: usize = 32;
 
 /// Estimates one fiber's thickness (voxels) from the isolated fibers of the volume, or
 /// `None` when there are too few to measure.
 ///
 /// Where fibers pack into yarns the volume says nothing about a single fiber, so we look
-/// where they stand alone: above the lowest run of each column (flyaways, loose fibers,
-/// gaps inside yarns). At a sample of those voxels we measure the fiber's cross-section
-/// area A — the coverage of the voxels within a disk of radius R in the slab of unit
-/// thickness perpendicular to the voxel's fiber axis ω_f ([`cross_section_diameter`]) —
-/// so d = 2√(A/π) holds for any tilt and any offset of the fiber from the grid (a vertical
-/// chord would depend on both). The thickness is the mode of these diameters (crossing
-/// and touching fibers only add a tail above it); estimates that fill the disk are
-/// packed regions and are dropped.
+/// where they stand alone: flyaways, loops, loose fibers at yarn edges. At a sample of
+/// all non-empty voxels we measure the radial cross-section profile perpendicular to the
+/// voxel's fiber axis ω_f ([`CrossSection`]); where it plateaus (an empty annulus around
+/// the structure) the structure is one isolated fiber and d = 2√(A/π), exact for any
+/// tilt and any offset from the grid (a vertical chord would depend on both). Packed
+/// voxels never plateau and are left out. The thickness is the mode of the isolated
+/// diameters: two fibers lying together (√2·d) only add a tail above it.
 pub fn estimate_fiber_thickness(volume: &FabricVolume, density: &DensityScale, progress: &dyn Progress) -> Option<f32> {
     let [nx, ny, nz] = volume.dims();
-    // Per column: the z just above the lowest run (voxels at or above it are candidates).
-    let lowest_end: Vec<u32> = (0..ny)
-        .into_par_iter()
-        .flat_map_iter(|j| {
-            let mut end = vec![u32::MAX; nx]; // MAX: lowest run not finished yet
-            let mut started = vec![false; nx];
-            for z in 0..nz {
-                let row = &volume.slab(z)[j * nx..(j + 1) * nx];
-                for i in 0..nx {
-                    if end[i] != u32::MAX {
-                        continue;
-                    }
-                    let filled = density.coverage(row[i].density()) > 0.0;
-                    if filled {
-                        started[i] = true;
-                    } else if started[i] {
-                        end[i] = z as u32;
-                    }
-                }
-            }
-            progress.advance(1);
-            end.into_iter().map(move |e| e.min(nz as u32))
-        })
-        .collect();
-    let is_candidate = |x: usize, y: usize, z: usize| z as u32 >= lowest_end[x + nx * y] && density.coverage(volume.voxel(x, y, z).density()) > 0.0;
-
-    // Candidates of row j, slab by slab (contiguous reads), in a fixed order.
-    let for_each_candidate = |j: usize, f: &mut dyn FnMut(usize, usize)| {
-        for z in 0..nz {
-            let row = &volume.slab(z)[j * nx..(j + 1) * nx];
-            for i in 0..nx {
-                if z as u32 >= lowest_end[i + nx * j] && density.coverage(row[i].density()) > 0.0 {
-                    f(i, z);
-                }
-            }
-        }
-    };
     let count: u64 = (0..ny)
         .into_par_iter()
         .map(|j| {
-            let mut n = 0u64;
-            for_each_candidate(j, &mut |_, _| n += 1);
+            let n = (0..nz).map(|z| volume.slab(z)[j * nx..(j + 1) * nx].iter().filter(|v| density.coverage(v.density()) > 0.0).count() as u64).sum::<u64>();
+            progress.advance(1);
             n
         })
         .sum();
-    if (count as usize) < THICKNESS_MIN_SAMPLES {
-        progress.advance(ny as u64);
-        return None;
-    }
     let stride = count.div_ceil(THICKNESS_SAMPLES).max(1);
     let scale = anisotropy(volume);
     let coverage = |x: i64, y: i64, z: i64| -> f32 {
         if z < 0 || z >= nz as i64 {
             return 0.0;
         }
-        let (xi, yi) = (wrap(x, nx), wrap(y, ny));
-        if is_candidate(xi, yi, z as usize) { density.coverage(volume.voxel(xi, yi, z as usize).density()) } else { 0.0 }
+        density.coverage(volume.voxel(wrap(x, nx), wrap(y, ny), z as usize).density())
     };
-    let saturated = 0.8 * 2.0 * THICKNESS_RADIUS as f32;
     let diameters: Vec<f32> = (0..ny)
         .into_par_iter()
         .flat_map_iter(|j| {
             let mut out = Vec::new();
-            for_each_candidate(j, &mut |i, z| {
-                if !splitmix64(volume.index(i, j, z) as u64).is_multiple_of(stride) {
-                    return;
+            for z in 0..nz {
+                let row = &volume.slab(z)[j * nx..(j + 1) * nx];
+                for (i, v) in row.iter().enumerate() {
+                    if density.coverage(v.density()) == 0.0 || !splitmix64(volume.index(i, j, z) as u64).is_multiple_of(stride) {
+                        continue;
+                    }
+                    let cs = CrossSection::measure_fitted([i as i64, j as i64, z as i64], v.orientation(), THICKNESS_RADIUS, scale, &coverage);
+                    out.extend(cs.and_then(|cs| cs.isolated_diameter()));
                 }
-                let axis = volume.voxel(i, j, z).orientation();
-                let d = cross_section_diameter([i as i64, j as i64, z as i64], axis, THICKNESS_RADIUS, scale, &coverage);
-                if d > 0.0 && d < saturated {
-                    out.push(d);
-                }
-            });
+            }
             progress.advance(1);
             out
         })
@@ -350,7 +361,7 @@ pub fn estimate_fiber_thickness(volume: &FabricVolume, density: &DensityScale, p
     if diameters.len() < THICKNESS_MIN_SAMPLES {
         return None;
     }
-    Some(histogram_mode(&diameters, 0.25, saturated))
+    Some(histogram_mode(&diameters, 0.25, 2.0 * THICKNESS_RADIUS))
 }
 
 /// Voxel size in units of the z size (the unit of thicknesses and heights).

@@ -21,6 +21,7 @@
 
 pub mod autocorrelation;
 pub mod blur;
+pub mod cross_section;
 pub mod flyaways;
 pub mod heightmap;
 pub mod io;
@@ -88,6 +89,9 @@ pub struct GeometryOptions {
     /// ±3σ kernel span one pattern period: the yarn-scale shape (period = filter size)
     /// keeps 58% of its amplitude, detail at a quarter of it keeps < 0.02%.
     pub sigma_per_filter_size: f32,
+    /// Columns without a surface run look for it at their neighbours' level, interpolated
+    /// with a Gaussian of σ = this many fiber thicknesses (texels) ([`heightmap::fill_holes`]).
+    pub hole_fill_sigma_fibers: f32,
     /// Scale of the fiber-level detail h0 − h in the normal map (1 = the paper).
     pub detail_strength: f32,
     /// Number of surface voxels, from the top of the column down, whose fiber axes are
@@ -107,6 +111,7 @@ impl Default for GeometryOptions {
             unpatterned_filter_size: 16.0,
             peak_search: PeakSearch::default(),
             sigma_per_filter_size: 1.0 / 6.0,
+            hole_fill_sigma_fibers: 2.0,
             detail_strength: 1.0,
             tangent_depth: 3,
         }
@@ -142,6 +147,9 @@ impl GeometryOptions {
         self.peak_search.validate()?;
         if !(self.sigma_per_filter_size.is_finite() && self.sigma_per_filter_size > 0.0 && self.sigma_per_filter_size <= 10.0) {
             return Err(bad("sigma_per_filter_size", self.sigma_per_filter_size, "must be in (0, 10]"));
+        }
+        if !(self.hole_fill_sigma_fibers.is_finite() && self.hole_fill_sigma_fibers > 0.0 && self.hole_fill_sigma_fibers <= 1e3) {
+            return Err(bad("hole_fill_sigma_fibers", self.hole_fill_sigma_fibers, "must be in (0, 1000]"));
         }
         if !(self.detail_strength.is_finite() && self.detail_strength.abs() <= 100.0) {
             return Err(bad("detail_strength", self.detail_strength, "must be finite, |value| ≤ 100"));
@@ -239,8 +247,11 @@ pub struct Geometry {
     pub fiber_thickness_auto: bool,
     /// Density threshold and solid density used.
     pub density: DensityScale,
-    /// Columns with no surface run (h0 = 0).
+    /// Columns with no surface at all: holes through the fabric (h0 = 0).
     pub hole_columns: usize,
+    /// Columns without a run thicker than a fiber whose surface was found at their
+    /// neighbours' level ([`heightmap::fill_holes`]).
+    pub filled_columns: usize,
     /// Columns whose surface starts in the top slab (the surface may be cut off).
     pub clipped_columns: usize,
     /// Texels whose tangent fell back to the projected x̂ (no usable fiber direction).
@@ -349,10 +360,11 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
     let t = Instant::now();
     progress.begin(Stage::HeightMap, ny as u64);
     let run_threshold = options.surface_run_factor * fiber_thickness;
-    let hm = heightmap::detailed_height(volume, &density, run_threshold, progress);
+    let mut hm = heightmap::detailed_height(volume, &density, run_threshold, progress);
     if hm.hole_columns == nx * ny {
         return Err(GeometryError::NoSurface { fiber_thickness, factor: options.surface_run_factor, run_threshold, thickest_run: hm.thickest_run });
     }
+    heightmap::fill_holes(volume, &density, &mut hm, fiber_thickness, options.hole_fill_sigma_fibers * fiber_thickness);
     if hm.clipped_columns > 0 {
         warnings.push(format!(
             "the surface starts in the top slab in {} of {} columns ({:.1}%): the volume may be cut off at the top; h0 there is at most the top face ({nz})",
@@ -363,7 +375,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
     }
     if hm.hole_columns * 2 > nx * ny {
         warnings.push(format!(
-            "{} of {} columns ({:.1}%) have no surface run (h0 = 0): a very open fabric, or a fiber thickness that is too large",
+            "{} of {} columns ({:.1}%) are holes (no material at their neighbours' surface level; h0 = 0): a very open fabric, or a fiber thickness that is too large",
             hm.hole_columns,
             nx * ny,
             100.0 * hm.hole_columns as f64 / (nx * ny) as f64
@@ -448,6 +460,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
         fiber_thickness_auto,
         density,
         hole_columns: hm.hole_columns,
+        filled_columns: hm.filled_columns,
         clipped_columns: hm.clipped_columns,
         tangent_fallback_texels: tm.fallback_texels,
         warnings,

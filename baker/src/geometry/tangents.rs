@@ -5,9 +5,12 @@
 //!   surface run are averaged as the coverage-weighted tensor M = Σ c·ω ωᵀ, whose
 //!   principal eigenvector is the mean axis; averaging ±ω as vectors could cancel.
 //! - t = normalize(e − (e·n) n): in the tangent plane, unit, ⟂ n.
-//! - Sign convention: t·(1, ε, 0) ≥ 0 with ε = 10⁻³, i.e. t points toward +x, and toward
-//!   +y when it is (nearly) perpendicular to x. The BRDF does not depend on the sign
-//!   (t → −t mirrors θ and φ, and its lobes are even), so this only makes maps stable.
+//! - Sign convention: t·(x̂ + ŷ) ≥ 0 (ties: t.x ≥ 0, then t.z ≥ 0). Woven fibers run
+//!   along x (weft) or y (warp); this picks +x̂ for the one and +ŷ for the other, both far
+//!   from the flip at t ∥ x̂ − ŷ, so the map has no sign seams inside a yarn (t·(1, ε, 0)
+//!   would flip on every warp yarn, with the x component's noise). The BRDF does not
+//!   depend on the sign (t → −t mirrors θ and φ, and its lobes are even), but a stable
+//!   sign keeps the map readable and filter-friendly.
 //! - Fallback, counted and reported: a hole (no surface voxel) or a fiber axis within
 //!   ~3° of the normal (|e − (e·n)n| < 0.05) has no usable direction; t is then x̂
 //!   projected into the tangent plane (ŷ where n is within ~3° of x̂), deterministic.
@@ -111,10 +114,17 @@ pub fn fallback_tangent(n: Vec3) -> Vec3 {
     tangent_from_axis(Vec3::X, n).or_else(|| tangent_from_axis(Vec3::Y, n)).unwrap_or(Vec3::X)
 }
 
-/// Applies the sign convention t·(1, ε, 0) ≥ 0.
+/// Applies the sign convention t·(x̂ + ŷ) ≥ 0 (ties: t.x ≥ 0, then t.z ≥ 0).
 #[inline]
 pub fn oriented(t: Vec3) -> Vec3 {
-    if t.x + 1e-3 * t.y < 0.0 { -t } else { t }
+    let mut s = t.x + t.y;
+    if s.abs() < 1e-6 {
+        s = t.x;
+    }
+    if s.abs() < 1e-6 {
+        s = t.z;
+    }
+    if s < 0.0 { -t } else { t }
 }
 
 #[cfg(test)]
@@ -146,12 +156,25 @@ mod tests {
     }
 
     #[test]
+    fn sign_convention_keeps_warp_and_weft_stable() {
+        // Warp fibers wobbling around ±y all map to +y-ish; weft around ±x to +x-ish.
+        for e in [-0.05f32, 0.0, 0.05] {
+            assert!(oriented(Vec3::new(e, 1.0, 0.1).normalize()).y > 0.0);
+            assert!(oriented(Vec3::new(e, -1.0, 0.1).normalize()).y > 0.0);
+            assert!(oriented(Vec3::new(1.0, e, 0.1).normalize()).x > 0.0);
+            assert!(oriented(Vec3::new(-1.0, e, 0.1).normalize()).x > 0.0);
+        }
+        assert_eq!(oriented(Vec3::new(-0.5, 0.5, 0.0)), Vec3::new(0.5, -0.5, 0.0));
+        assert_eq!(oriented(-Vec3::Z), Vec3::Z);
+    }
+
+    #[test]
     fn tangents_are_unit_orthogonal_and_signed() {
         let n = Vec3::new(0.3, -0.2, 1.0).normalize();
         for e in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::new(-1.0, 1.0, 0.4)] {
             let t = tangent_from_axis(e, n).unwrap();
             assert!((t.length() - 1.0).abs() < 1e-6 && t.dot(n).abs() < 1e-6);
-            assert!(t.x + 1e-3 * t.y >= 0.0);
+            assert!(t.x + t.y >= 0.0);
             assert!(tangent_from_axis(-e, n).unwrap().abs_diff_eq(t, 1e-6), "sign of ω must not matter");
         }
         assert_eq!(tangent_from_axis(n, n), None);

@@ -362,3 +362,43 @@ fn progress_reports_every_stage_and_reaches_each_total() {
         assert_eq!(total, done, "{stage:?}");
     }
 }
+
+#[test]
+fn columns_without_a_thick_run_take_the_surface_of_their_neighbours_or_are_holes() {
+    // A flat body of height 10 with three bands of columns along y:
+    // x in 20..24: only a one-voxel layer at z = 9 (a yarn edge thinned to one fiber);
+    // x in 40..44: nothing at all (a gap through the fabric);
+    // x in 50..54: nothing but one voxel high up at z = 18 (a flyaway over the gap).
+    let (mut vol, _) = height_field([64, 32, 24], |_, _| 10.0, |_, _, _| Vec3::Y);
+    for y in 0..32 {
+        for x in (20..24).chain(40..44).chain(50..54) {
+            for z in 0..24 {
+                vol.set(x, y, z, Voxel::EMPTY);
+            }
+        }
+        for x in 20..24 {
+            vol.set(x, y, 9, Voxel::pack(1.0, Vec3::splat(0.8), Vec3::Y));
+        }
+        for x in 50..54 {
+            vol.set(x, y, 18, Voxel::pack(1.0, Vec3::splat(0.8), Vec3::Y));
+        }
+    }
+    let g = extract_geometry(&vol, &GeometryOptions { fiber_thickness: Some(2.0), ..Default::default() }).unwrap();
+    check_invariants(&g);
+    assert_eq!(g.filled_columns, 4 * 32);
+    assert_eq!(g.hole_columns, 8 * 32);
+    for y in 0..32 {
+        for x in 0..64 {
+            let (h0, top) = (g.h0[x + 64 * y], g.surface_top(x, y));
+            match x {
+                // The thin layer is the surface at the neighbours' level: top face of cell 9.
+                20..24 => assert!(top == Some(9) && (h0 - 10.0).abs() < 1e-5, "({x}, {y}): {h0} {top:?}"),
+                40..44 | 50..54 => assert!(top.is_none() && h0 == 0.0, "({x}, {y}): {h0} {top:?}"),
+                _ => assert!(top == Some(9) && (h0 - 10.0).abs() < 1e-5, "({x}, {y}): {h0} {top:?}"),
+            }
+        }
+    }
+    // V is exactly the voxel over the gap in each column of the last band.
+    assert_eq!(g.flyaways.len(), 4 * 32);
+    assert!(g.flyaways.voxels.iter().all(|v| v.z == 18 && (50..54).contains(&v.x)));
+}

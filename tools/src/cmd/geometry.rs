@@ -132,7 +132,10 @@ fn print_summary(g: &Geometry) {
     println!("fiber thickness {:.2} voxels ({})", g.fiber_thickness, if g.fiber_thickness_auto { "estimated" } else { "given or default" });
     let [lo, hi] = Geometry::range(&g.h0);
     let [slo, shi] = Geometry::range(&g.h);
-    println!("h0 in [{lo:.2}, {hi:.2}] voxels, h in [{slo:.2}, {shi:.2}]; {} hole columns, {} clipped at the top", g.hole_columns, g.clipped_columns);
+    println!(
+        "h0 in [{lo:.2}, {hi:.2}] voxels, h in [{slo:.2}, {shi:.2}]; {} hole columns, {} filled from their neighbours, {} clipped at the top",
+        g.hole_columns, g.filled_columns, g.clipped_columns
+    );
     println!("flyaway voxels {} (longest column {})", g.flyaways.len(), g.flyaways.max_column_len());
     let total: f64 = g.stage_times.iter().map(|s| s.seconds).sum();
     let times: Vec<String> = g.stage_times.iter().map(|s| format!("{} {:.3}", s.stage, s.seconds)).collect();
