@@ -22,10 +22,13 @@
 //! the sampling error of C at a lag beyond the correlation length has variance
 //! ≈ (1/N) Σ_{u,v} ρ(u, v)², which we estimate from the central lobes (lags before the
 //! first zero crossing) of the 1D autocorrelations, taking ρ as separable. A weave's
-//! height is largely additive, warp profile f(x) plus weft profile g(y), whose
-//! correlations never decay along the other axis; so the random field of the null is h
-//! less its row and column mean profiles (which barely changes a felt: its profiles
-//! average out), and its noise enters C scaled by its share of h's variance.
+//! height is largely additive, a profile f(x) (column means) plus a profile g(y) (row
+//! means), whose correlations never decay along the other axis, which would make the
+//! lobes endless. So h = f + g + r is split, and the noise of C0 is that of the random
+//! part r (Bartlett, 2D, scaled by r's share of h's variance) plus that of f, a single
+//! realization of nx samples (Bartlett, 1D, scaled by f's share); C1 likewise with g. A
+//! periodic profile's lobe ends within a quarter period, so it adds little; a random
+//! one (silk's irregular weft profile, a felt's) adds its full sampling noise.
 
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
@@ -37,9 +40,9 @@ use super::GeometryError;
 pub struct Autocorrelation {
     pub c0: Vec<f32>,
     pub c1: Vec<f32>,
-    /// Standard error of C at lags beyond the correlation length due to h0's random part
-    /// (module docs).
-    pub null_sd: f32,
+    /// Standard error of C0 and C1 at lags beyond the correlation length, were h0 free
+    /// of periodic patterns (module docs).
+    pub null_sd: [f32; 2],
 }
 
 /// How the two first peaks become the filter size [x, y].
@@ -118,12 +121,14 @@ pub fn autocorrelate(h: &[f32], nx: usize, ny: usize) -> Option<Autocorrelation>
     let residual: Vec<f64> = (0..nx * ny).map(|k| centered[k] - row_mean[k / nx] - col_mean[k % nx]).collect();
     let residual_t: Vec<f64> = (0..nx * ny).map(|k| residual[(k / ny) + nx * (k % ny)]).collect();
     let (r0, r1) = (line_autocorrelation(&residual, nx, ny), line_autocorrelation(&residual_t, ny, nx));
-    let null_sd = if r0[0] > 1e-12 * total_energy {
-        let random_share = r0[0] / total_energy;
-        random_share * ((lobe_energy(&norm(r0)) * lobe_energy(&norm(r1))) / (nx * ny) as f64).sqrt()
-    } else {
-        0.0
-    } as f32;
+    let residual_var = if r0[0] > 1e-12 * total_energy { (r0[0] / total_energy).powi(2) * lobe_energy(&norm(r0)) * lobe_energy(&norm(r1)) / (nx * ny) as f64 } else { 0.0 };
+    // A profile is one realization along its axis: its own sampling noise enters the
+    // autocorrelation along that axis (and only a constant along the other).
+    let profile_var = |p: &[f64], copies: usize| -> f64 {
+        let a = line_autocorrelation(p, p.len(), 1);
+        if a[0] > 1e-12 * total_energy { (a[0] * copies as f64 / total_energy).powi(2) * lobe_energy(&norm(a)) / p.len() as f64 } else { 0.0 }
+    };
+    let null_sd = [(residual_var + profile_var(&col_mean, ny)).sqrt() as f32, (residual_var + profile_var(&row_mean, nx)).sqrt() as f32];
     Some(Autocorrelation { c0, c1, null_sd })
 }
 

@@ -394,7 +394,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
     progress.begin(Stage::Autocorrelation, 2);
     let ac = autocorrelation::autocorrelate(&hm.h0, nx, ny);
     let peaks = match &ac {
-        Some(ac) => [autocorrelation::first_peak(&ac.c0, ac.null_sd, &options.peak_search), autocorrelation::first_peak(&ac.c1, ac.null_sd, &options.peak_search)],
+        Some(ac) => [autocorrelation::first_peak(&ac.c0, ac.null_sd[0], &options.peak_search), autocorrelation::first_peak(&ac.c1, ac.null_sd[1], &options.peak_search)],
         None => [None, None],
     };
     progress.advance(2);
