@@ -81,8 +81,13 @@ pub struct GeometryOptions {
     pub filter_size: Option<[f32; 2]>,
     /// How the two autocorrelation peaks become the filter size.
     pub filter_rule: FilterRule,
-    /// Filter size for unpatterned (felt-like) input, in texels.
-    pub unpatterned_filter_size: f32,
+    /// Filter size for unpatterned (felt-like) input, in texels [x, y]; `None` uses
+    /// `unpatterned_filter_fibers` fiber thicknesses.
+    pub unpatterned_filter_size: Option<[f32; 2]>,
+    /// Default filter size for unpatterned input, in fiber thicknesses: smoothing over a
+    /// few fibers leaves the clumps of a felt in h and its fibers in n, at any voxel
+    /// resolution (a size fixed in texels would not).
+    pub unpatterned_filter_fibers: f32,
     /// Robust first-peak search settings.
     pub peak_search: PeakSearch,
     /// Gaussian σ = `sigma_per_filter_size` × filter size. The default 1/6 makes the
@@ -108,7 +113,8 @@ impl Default for GeometryOptions {
             surface_run_factor: 1.5,
             filter_size: None,
             filter_rule: FilterRule::PerAxis,
-            unpatterned_filter_size: 16.0,
+            unpatterned_filter_size: None,
+            unpatterned_filter_fibers: 6.0,
             peak_search: PeakSearch::default(),
             sigma_per_filter_size: 1.0 / 6.0,
             hole_fill_sigma_fibers: 2.0,
@@ -141,8 +147,13 @@ impl GeometryOptions {
         {
             return Err(bad("filter_size", format!("{s:?}"), "must be non-negative texel counts"));
         }
-        if !(self.unpatterned_filter_size.is_finite() && self.unpatterned_filter_size >= 0.0) {
-            return Err(bad("unpatterned_filter_size", self.unpatterned_filter_size, "must be non-negative"));
+        if let Some(s) = self.unpatterned_filter_size
+            && !s.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 1e6)
+        {
+            return Err(bad("unpatterned_filter_size", format!("{s:?}"), "must be non-negative texel counts"));
+        }
+        if !(self.unpatterned_filter_fibers.is_finite() && self.unpatterned_filter_fibers > 0.0 && self.unpatterned_filter_fibers <= 1e4) {
+            return Err(bad("unpatterned_filter_fibers", self.unpatterned_filter_fibers, "must be in (0, 10⁴]"));
         }
         self.peak_search.validate()?;
         if !(self.sigma_per_filter_size.is_finite() && self.sigma_per_filter_size > 0.0 && self.sigma_per_filter_size <= 10.0) {
@@ -403,12 +414,19 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
         None => match autocorrelation::filter_size(peaks, options.filter_rule) {
             Some(s) => (s, true),
             None => {
+                // Fiber thickness is in z-voxels; texels are x and y voxels.
+                let vs = volume.voxel_size();
+                let size = options.unpatterned_filter_size.unwrap_or_else(|| {
+                    let d = options.unpatterned_filter_fibers * fiber_thickness;
+                    [d * vs.z / vs.x, d * vs.z / vs.y]
+                });
                 warnings.push(format!(
-                    "no clear autocorrelation peak (unpatterned, felt-like{}): using the fixed filter size {} texels",
+                    "no clear autocorrelation peak (unpatterned, felt-like{}): using the fixed filter size {:.2} x {:.2} texels",
                     if ac.is_none() { "; h0 is flat" } else { "" },
-                    options.unpatterned_filter_size
+                    size[0],
+                    size[1]
                 ));
-                ([options.unpatterned_filter_size; 2], false)
+                (size, false)
             }
         },
     };

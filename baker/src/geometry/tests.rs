@@ -90,7 +90,7 @@ fn unpatterned_surface_gets_the_default_filter_size_and_says_so() {
         let g = extract(&vol);
         check_invariants(&g);
         assert!(!g.filter_auto, "seed {seed}: peaks {:?}", g.autocorrelation_peaks);
-        assert_eq!(g.filter_size, [16.0, 16.0]);
+        assert_eq!(g.filter_size, [6.0 * g.fiber_thickness; 2]);
         assert!(g.warnings.iter().any(|w| w.contains("no clear autocorrelation peak")), "{:?}", g.warnings);
         // The null standard error matches Bartlett's for this field: Σρ² = πσ_ρ² with
         // σ_ρ = 3√2 gives √(56.5/9216) = 0.078 (±30% for the sampling of the lobes).

@@ -36,9 +36,10 @@ pub struct GeometryArgs {
     /// instead of one per axis.
     #[arg(long)]
     pub smaller_filter: bool,
-    /// Filter size for unpatterned (felt-like) input, in texels.
-    #[arg(long, default_value_t = 16.0)]
-    pub unpatterned_filter_size: f32,
+    /// Filter size for unpatterned (felt-like) input, in texels: S, or X,Y
+    /// [default: 6 fiber thicknesses].
+    #[arg(long, value_parser = parse_filter_size)]
+    pub unpatterned_filter_size: Option<[f32; 2]>,
     /// Gaussian σ as a fraction of the filter size.
     #[arg(long, default_value_t = 1.0 / 6.0)]
     pub sigma_per_filter_size: f32,
