@@ -2,5 +2,6 @@
 //! renderer that draws them (../shared/DESIGN.md §6–§7).
 
 pub mod brdf;
+pub mod hybrid;
 pub mod image;
 pub mod scene;
