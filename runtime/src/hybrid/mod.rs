@@ -6,7 +6,8 @@
 //! - [`flyaway`]: the flyaway volume as per-texel linked lists;
 //! - [`packing`]: f16 / unorm16 / octahedral / tangent-angle packings and their errors;
 //! - [`format`]: the `.hyb` file (runtime/HYBRID_FORMAT.md), reader and writer;
-//! - [`stats`]: what `fabric inspect model.hyb` prints.
+//! - [`stats`]: what `fabric inspect model.hyb` prints;
+//! - [`examples`]: hand-built models with known answers, for tests.
 //!
 //! Storage per element (the paper's models are 25–41 MB for 1k² tiles):
 //!
@@ -24,6 +25,7 @@
 //! on average, 37.3 MiB at L = 6) lands in the paper's range.
 
 pub mod error;
+pub mod examples;
 pub mod flyaway;
 pub mod format;
 pub mod lobe;
