@@ -127,6 +127,22 @@ ClothFrame cloth_frame(vec3 n, vec3 t) {
     return f;
 }
 
+// The frame of a flyaway fiber seen from wo (DESIGN.md section 5): t = the fiber axis,
+// n = wo made perpendicular to t (the fiber seen side-on), b = n x t. Fallbacks:
+// fiber ~ 0 -> +X; wo parallel to t -> n = cloth_reference_tangent(t).
+ClothFrame cloth_fiber_frame(vec3 fiber, vec3 wo) {
+    float f_len2 = dot(fiber, fiber);
+    vec3 t = f_len2 > CLOTH_EPS_LEN2 ? fiber * (1.0 / sqrt(f_len2)) : vec3(1.0, 0.0, 0.0);
+    vec3 n_raw = wo - t * dot(wo, t);
+    float n_len2 = dot(n_raw, n_raw);
+    vec3 n = n_len2 > CLOTH_EPS_PROJ2 ? n_raw * (1.0 / sqrt(n_len2)) : cloth_reference_tangent(t);
+    ClothFrame f;
+    f.n = n;
+    f.t = t;
+    f.b = cross(n, t);
+    return f;
+}
+
 // theta and phi of unit direction w in frame f.
 ClothAngles cloth_angles(ClothFrame f, vec3 w) {
     ClothAngles r;

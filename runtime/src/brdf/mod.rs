@@ -204,6 +204,20 @@ pub fn cloth_frame(n: Vec3, t: Vec3) -> ClothFrame {
     ClothFrame { n, t, b: n.cross(t) }
 }
 
+/// The frame of a flyaway fiber seen from `wo` (DESIGN.md §5, "the implicit surface
+/// derived from the volume"): t = the fiber axis `fiber` (normalized), n = `wo` made
+/// perpendicular to t (the fiber seen side-on), b = n × t. Fallbacks: fiber ≈ 0 → +X;
+/// wo ∥ t → n = [`cloth_reference_tangent`]`(t)`.
+#[inline]
+pub fn cloth_fiber_frame(fiber: Vec3, wo: Vec3) -> ClothFrame {
+    let f_len2 = fiber.dot(fiber);
+    let t = if f_len2 > EPS_LEN2 { fiber * (1.0 / f_len2.sqrt()) } else { Vec3::X };
+    let n_raw = wo - t * wo.dot(t);
+    let n_len2 = n_raw.dot(n_raw);
+    let n = if n_len2 > EPS_PROJ2 { n_raw * (1.0 / n_len2.sqrt()) } else { cloth_reference_tangent(t) };
+    ClothFrame { n, t, b: n.cross(t) }
+}
+
 /// θ and φ of direction `w` (unit) in frame `f`.
 #[inline]
 pub fn cloth_angles(f: &ClothFrame, w: Vec3) -> ClothAngles {

@@ -167,7 +167,7 @@ fn finite_and_non_negative_on_a_million_random_and_extreme_inputs() {
     let mut max_seen = 0.0f32;
     for (i, input) in inputs.iter().enumerate() {
         let out = input.evaluate();
-        for v in out.brdf.iter().chain(&out.lobe0) {
+        for v in out.brdf.iter().chain(&out.lobe0).chain(&out.fiber) {
             assert!(v.is_finite() && *v >= 0.0, "input {i}: {input:?} -> {out:?}");
             max_seen = max_seen.max(*v);
         }
@@ -201,8 +201,24 @@ fn brdf_test_vectors_are_current() {
         // Inputs are stored exactly (shortest round-trip decimal); outputs to 1e-6
         // relative, the slack a different libm's exp/asin/atan2 may need.
         assert_eq!((s.n, s.t, s.wi, s.wo, s.kd, s.eta, s.a, &s.reading, &s.lobes), (f.n, f.t, f.wi, f.wo, f.kd, f.eta, f.a, &f.reading, &f.lobes), "row {i}");
-        for (x, y) in s.brdf.iter().chain(&s.lobe0).zip(f.brdf.iter().chain(&f.lobe0)) {
+        for (x, y) in s.brdf.iter().chain(&s.lobe0).chain(&s.fiber).zip(f.brdf.iter().chain(&f.lobe0).chain(&f.fiber)) {
             assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-6), "row {i}: stored {x}, now {y}");
         }
     }
+}
+
+#[test]
+fn fiber_frame_sees_the_fiber_side_on() {
+    let mut rng = SplitMix64(13);
+    for _ in 0..1000 {
+        let (fiber, wo) = (rng.unit_vector() * rng.range(0.1, 10.0), rng.unit_vector());
+        let f = cloth_fiber_frame(fiber, wo);
+        assert!(f.t.cross(fiber).length() < 1e-5 * fiber.length(), "t is the fiber axis");
+        assert!(f.n.dot(f.t).abs() < 1e-5 && (f.n.length() - 1.0).abs() < 1e-5);
+        // n is wo's component perpendicular to t: wo lies in the (n, t) plane, n·wo ≥ 0.
+        assert!(wo.dot(f.b).abs() < 1e-5 && wo.dot(f.n) >= 0.0);
+    }
+    let f = cloth_fiber_frame(Vec3::Z, Vec3::Z);
+    assert_eq!((f.t, f.n), (Vec3::Z, cloth_reference_tangent(Vec3::Z)));
+    assert_eq!(cloth_fiber_frame(Vec3::ZERO, Vec3::Z).t, Vec3::X);
 }

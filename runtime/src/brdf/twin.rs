@@ -9,7 +9,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::{BrdfReading, ClothLobe, ClothParams, MAX_LOBES, cloth_brdf, cloth_frame, cloth_lobe};
+use super::{BrdfReading, ClothLobe, ClothParams, MAX_LOBES, cloth_brdf, cloth_fiber_frame, cloth_frame, cloth_lobe};
 
 /// One evaluation request, laid out as `EvalInput` in `shaders/brdf_eval.comp`.
 #[repr(C)]
@@ -44,10 +44,12 @@ pub struct BrdfEvalOutput {
     pub brdf: [f32; 4],
     /// `cloth_lobe` of lobe 0 in the same frame (rgb); w = 0.
     pub lobe0: [f32; 4],
+    /// `cloth_brdf` in `cloth_fiber_frame(t, wo)`: t read as a flyaway's fiber axis (rgb).
+    pub fiber: [f32; 4],
 }
 
 const _: () = assert!(core::mem::size_of::<BrdfEvalInput>() == 256);
-const _: () = assert!(core::mem::size_of::<BrdfEvalOutput>() == 32);
+const _: () = assert!(core::mem::size_of::<BrdfEvalOutput>() == 48);
 
 impl BrdfEvalInput {
     pub fn new(n: Vec3, t: Vec3, wi: Vec3, wo: Vec3, p: &ClothParams, reading: BrdfReading) -> BrdfEvalInput {
@@ -88,7 +90,8 @@ impl BrdfEvalInput {
         let (wi, wo) = (v3(self.wi), v3(self.wo));
         let brdf = cloth_brdf(&p, &f, wi, wo, self.reading());
         let lobe0 = cloth_lobe(&p.lobes[0], p.eta, p.a, &f, wi, wo, self.reading());
-        BrdfEvalOutput { brdf: brdf.extend(0.0).to_array(), lobe0: lobe0.extend(0.0).to_array() }
+        let fiber = cloth_brdf(&p, &cloth_fiber_frame(v3(self.t), wo), wi, wo, self.reading());
+        BrdfEvalOutput { brdf: brdf.extend(0.0).to_array(), lobe0: lobe0.extend(0.0).to_array(), fiber: fiber.extend(0.0).to_array() }
     }
 }
 
@@ -246,6 +249,8 @@ pub struct TestVector {
     pub brdf: [f32; 3],
     /// `cloth_lobe(lobes[0], eta, a, cloth_frame(n, t), wi, wo, reading)`.
     pub lobe0: [f32; 3],
+    /// `cloth_brdf(params, cloth_fiber_frame(t, wo), wi, wo, reading)`.
+    pub fiber: [f32; 3],
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -288,6 +293,7 @@ impl TestVector {
             lobes: p.lobes().iter().map(|l| TestVectorLobe { k: l.k.to_array(), beta: l.beta, gamma: l.gamma }).collect(),
             brdf: a3(out.brdf),
             lobe0: a3(out.lobe0),
+            fiber: a3(out.fiber),
         }
     }
 }
@@ -301,7 +307,7 @@ pub fn test_vector_file() -> TestVectorFile {
     TestVectorFile {
         about: "Test vectors of the cloth BRDF (shaders/brdf.glsl and runtime/src/brdf/mod.rs), written by the Rust twin. \
                 Each row: frame (n, t; not necessarily unit or orthogonal: cloth_frame completes it), wi (toward the light) and \
-                wo (toward the viewer), parameters, reading, and the outputs cloth_brdf and cloth_lobe(lobe 0). \
+                wo (toward the viewer), parameters, reading, and the outputs cloth_brdf, cloth_lobe(lobe 0) and cloth_brdf in cloth_fiber_frame(t, wo). \
                 A port should agree to ~1e-4 relative (f32; steep lobes amplify angle rounding). \
                 Regenerate with FABRIC_BLESS=1 cargo test -p fabric-runtime brdf_test_vectors."
             .into(),
