@@ -1,7 +1,13 @@
 //! The runtime: hybrid fabric models (format, BRDF, CPU renderer) and the Vulkan
 //! renderer that draws them (../shared/DESIGN.md §6–§7).
 
+// Linked for its glslang/SPIRV-Tools link lines (see runtime/shaderc-link).
+use shaderc_link as _;
+
 pub mod brdf;
+pub mod gpu;
 pub mod hybrid;
 pub mod image;
+pub mod metrics;
+pub mod vk;
 pub mod scene;
