@@ -218,16 +218,44 @@ pub fn cloth_fiber_frame(fiber: Vec3, wo: Vec3) -> ClothFrame {
     ClothFrame { n, t, b: n.cross(t) }
 }
 
+/// atan2(y, x) in (−π, π], computed the same way in both twins (Cephes' atanf on
+/// min/max of |x|, |y|, relative error ≈ 2e-7): GPUs' built-in inverse trigonometry is an
+/// approximation of their own (lavapipe's asin is off by up to 3.9e-4 rad, its atan by
+/// 3e-6), which narrow lobes (β ≈ 0.005) amplify a hundredfold. atan2(0, 0) = 0; the
+/// sign of a zero y is ignored (atan2(−0, −1) = π).
+#[inline]
+pub fn cloth_atan2(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (hi, lo) = (ax.max(ay), ax.min(ay));
+    let mut r = if hi > 0.0 { lo / hi } else { 0.0 };
+    // r ∈ [0, 1]; above tan(π/8) reduce with atan r = π/4 + atan((r − 1)/(r + 1)).
+    let mut base = 0.0;
+    if r > 0.414_213_57 {
+        base = std::f32::consts::FRAC_PI_4;
+        r = (r - 1.0) / (r + 1.0);
+    }
+    let z = r * r;
+    let mut a = base + ((((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * r + r);
+    if ay > ax {
+        a = std::f32::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = std::f32::consts::PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
 /// θ and φ of direction `w` (unit) in frame `f`.
 #[inline]
 pub fn cloth_angles(f: &ClothFrame, w: Vec3) -> ClothAngles {
     let sin_theta = w.dot(f.t).clamp(-1.0, 1.0);
     let cos_theta = (1.0 - sin_theta * sin_theta).max(0.0).sqrt();
-    let theta = sin_theta.asin();
+    // θ = asin(sin θ), through the twins' own arctangent (see cloth_atan2).
+    let theta = cloth_atan2(sin_theta, cos_theta);
     let x = w.dot(f.n);
     let y = w.dot(f.b);
     let r2 = x * x + y * y;
-    let (phi, cos_phi) = if r2 > EPS_PROJ2 { (y.atan2(x), x * (1.0 / r2.sqrt())) } else { (0.0, 1.0) };
+    let (phi, cos_phi) = if r2 > EPS_PROJ2 { (cloth_atan2(y, x), x * (1.0 / r2.sqrt())) } else { (0.0, 1.0) };
     ClothAngles { sin_theta, cos_theta, theta, phi, cos_phi }
 }
 

@@ -222,3 +222,25 @@ fn fiber_frame_sees_the_fiber_side_on() {
     assert_eq!((f.t, f.n), (Vec3::Z, cloth_reference_tangent(Vec3::Z)));
     assert_eq!(cloth_fiber_frame(Vec3::ZERO, Vec3::Z).t, Vec3::X);
 }
+
+#[test]
+fn twin_arctangent_is_accurate_everywhere() {
+    let mut worst = 0.0f64;
+    let n = 20_000;
+    for k in 0..=n {
+        let a = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+        for r in [1e-20f64, 1e-3, 1.0, 7.5, 1e20] {
+            let (y, x) = ((a.sin() * r) as f32, (a.cos() * r) as f32);
+            let want = (y as f64).atan2(x as f64);
+            let got = cloth_atan2(y, x) as f64;
+            // Compare on the circle (π and −π are one angle).
+            let d = (got - want).abs().min(2.0 * std::f64::consts::PI - (got - want).abs());
+            worst = worst.max(d / want.abs().max(1e-3));
+        }
+    }
+    assert!(worst < 5e-7, "worst relative error {worst:.2e}");
+    assert_eq!(cloth_atan2(0.0, 0.0), 0.0);
+    assert_eq!(cloth_atan2(0.0, 1.0), 0.0);
+    assert!((cloth_atan2(1.0, 0.0) - std::f32::consts::FRAC_PI_2).abs() < 1e-7);
+    assert!((cloth_atan2(0.0, -1.0) - std::f32::consts::PI).abs() < 1e-7);
+}
