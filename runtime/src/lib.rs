@@ -5,6 +5,7 @@
 use shaderc_link as _;
 
 pub mod brdf;
+pub mod cpu;
 pub mod gpu;
 pub mod hybrid;
 pub mod image;
