@@ -346,3 +346,23 @@ fn long_randomized_corruption() {
     let (rejected, accepted) = randomized_corruption(iters, 0xc0ffee);
     println!("{iters} corrupted files in {:.1?}: {rejected} rejected, {accepted} accepted", t.elapsed());
 }
+
+#[test]
+fn fuzz_seeds_are_current() {
+    // runtime/fuzz/seeds: valid files the fuzzers start from (runtime/fuzz/README.md).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
+    let params = examples::silk_params();
+    let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
+    let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
+    examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayVoxel { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small)] {
+        let bytes = format::to_bytes(&model).unwrap();
+        let path = dir.join(name);
+        if std::env::var_os("FABRIC_BLESS").is_some() {
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        let stored = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (write it with FABRIC_BLESS=1)", path.display()));
+        assert!(stored == bytes, "{} is stale: regenerate with FABRIC_BLESS=1", path.display());
+    }
+}
