@@ -45,7 +45,7 @@ fn evaluate_on_gpu(device: &Arc<Device>, inputs: &[BrdfEvalInput]) -> Vec<BrdfEv
 fn scale(input: &BrdfEvalInput) -> f32 {
     let p = input.params();
     let kd = p.kd.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element();
-    let peak = |l: &fabric_runtime::brdf::ClothLobe| l.k.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element() * 0.3989423 / l.beta.max(BETA_MIN).min(1e4);
+    let peak = |l: &fabric_runtime::brdf::ClothLobe| l.k.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element() * 0.398_942_3 / l.beta.clamp(BETA_MIN, 1e4);
     (kd + p.lobes().iter().map(peak).sum::<f32>()).max(1e-6)
 }
 

@@ -91,6 +91,9 @@ fn edit_entry(b: &mut [u8], index: usize, f: impl FnOnce(&mut SectionEntry)) {
     reseal_table(b);
 }
 
+/// What a corruption case expects of the error.
+type Expect = fn(&FormatError) -> bool;
+
 fn err(bytes: &[u8]) -> FormatError {
     match format::read(bytes) {
         Ok(_) => panic!("a corrupt file was accepted"),
@@ -166,7 +169,7 @@ fn minor_versions_and_unknown_optional_sections_are_read() {
 fn container_corruption_catalogue() {
     let good = sample_bytes();
     let len = good.len();
-    let cases: Vec<(&str, Vec<u8>, fn(&FormatError) -> bool)> = vec![
+    let cases: Vec<(&str, Vec<u8>, Expect)> = vec![
         ("empty", vec![], |e| matches!(e, FormatError::TooShort { len: 0, .. })),
         ("10 bytes", good[..10].to_vec(), |e| matches!(e, FormatError::TooShort { .. })),
         ("bad magic", { let mut b = good.clone(); b[1] = b'X'; b }, |e| matches!(e, FormatError::BadMagic { .. })),
@@ -209,7 +212,7 @@ fn overlapping_and_duplicate_sections_are_rejected() {
 #[test]
 fn semantic_corruption_catalogue() {
     type Edit = fn(&mut Parts);
-    let cases: Vec<(&str, Edit, fn(&FormatError) -> bool)> = vec![
+    let cases: Vec<(&str, Edit, Expect)> = vec![
         ("unknown required section", |p| p.sections.push((SectionEntry { kind: 999, ..Default::default() }, vec![1; 8])), |e| matches!(e, FormatError::UnknownRequired { kind: 999, .. })),
         ("missing HEIGHT", |p| p.sections.retain(|(e, _)| e.kind != SectionKind::Height as u32), |e| matches!(e, FormatError::Missing { kind: "HEIGHT", .. })),
         ("missing MODEL", |p| p.sections.retain(|(e, _)| e.kind != SectionKind::Model as u32), |e| matches!(e, FormatError::Missing { kind: "MODEL", .. })),
@@ -365,4 +368,15 @@ fn fuzz_seeds_are_current() {
         let stored = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (write it with FABRIC_BLESS=1)", path.display()));
         assert!(stored == bytes, "{} is stale: regenerate with FABRIC_BLESS=1", path.display());
     }
+}
+
+#[test]
+fn synthetic_benchmark_models_are_valid_and_round_trip() {
+    let m = examples::synthetic_model(40, 3);
+    m.validate().unwrap();
+    assert!(m.has_flyaways() && m.levels.len() == 6);
+    // Downsampled flyaways: alpha is a fraction of 8^ℓ children.
+    let f3 = m.levels[3].flyaways.as_ref().unwrap();
+    assert!(f3.nodes.iter().all(|n| n.alpha() > 0.0 && n.alpha() <= 1.0));
+    assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap(), m);
 }

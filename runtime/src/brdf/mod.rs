@@ -53,6 +53,10 @@
 //! [`cloth_lobe`] gives one lobe in its own frame for texels whose lobes have
 //! different frames (coarse levels).
 
+// `x.max(lo).min(hi)` rather than `clamp`: it absorbs NaN (f32::max drops it) and reads
+// as the GLSL `min(max(x, lo), hi)`; `!(x > 0.0)` is the NaN-aware test, as in the GLSL.
+#![allow(clippy::manual_clamp, clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod twin;
 
 use glam::Vec3;

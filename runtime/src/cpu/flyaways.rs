@@ -79,7 +79,8 @@ pub struct FlyawayMarch {
 /// Opacity of a voxel of coverage `alpha` crossed over `path` with edge `edge`.
 #[inline]
 pub fn flyaway_opacity(alpha: f32, path: f32, edge: f32) -> f32 {
-    if !(path > 0.0) {
+    // NaN-aware: a NaN path is no path.
+    if path.is_nan() || path <= 0.0 {
         return 0.0;
     }
     if alpha >= 1.0 {
@@ -100,7 +101,7 @@ struct AxisCursor {
 /// crosses (at its entry point), compositing front to back.
 pub fn march_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut shade: impl FnMut(&FlyawayNode, f32) -> Vec3) -> FlyawayMarch {
     let mut out = FlyawayMarch { radiance: Vec3::ZERO, transmittance: 1.0, columns: 0, limited: false };
-    if !(t_end > t_start) || ray.d.z >= 0.0 {
+    if t_end.is_nan() || t_end <= t_start || ray.d.z >= 0.0 {
         return out;
     }
     // Position in level-0 texel units: u(t) = u0 + du·t.

@@ -98,6 +98,8 @@ pub struct RenderStats {
     pub step_limited_pixels: u64,
     /// Shadow rays that ran out of steps (counted as blocked).
     pub step_limited_shadow_rays: u64,
+    /// Height-field traversal steps of all camera rays.
+    pub camera_steps: u64,
 }
 
 impl RenderStats {
@@ -111,6 +113,7 @@ impl RenderStats {
         self.flyaway_pixels += (t.flyaway_opacity > 0.0) as u64;
         self.step_limited_pixels += t.step_limited as u64;
         self.step_limited_shadow_rays += t.shadow_step_limited as u64;
+        self.camera_steps += t.steps as u64;
     }
 
     fn merge(&mut self, o: &RenderStats) {
@@ -123,6 +126,7 @@ impl RenderStats {
         }
         self.step_limited_pixels += o.step_limited_pixels;
         self.step_limited_shadow_rays += o.step_limited_shadow_rays;
+        self.camera_steps += o.camera_steps;
     }
 }
 

@@ -7,6 +7,9 @@
 //! flyaway lists of that level are marched over the same stretch and composited front
 //! to back; what they let through sees the surface, shaded with its texel's lobes.
 
+
+// `!(x > 0.0)` is the NaN-aware test (NaN fails it), as the GLSL writes it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -43,6 +46,8 @@ pub struct PixelTrace {
     pub flyaway_opacity: f32,
     pub step_limited: bool,
     pub shadow_step_limited: u32,
+    /// Height-field traversal steps of the camera ray.
+    pub steps: u32,
 }
 
 impl<'a> Scene<'a> {
@@ -53,15 +58,10 @@ impl<'a> Scene<'a> {
         for light in lights {
             light.validate()?;
         }
-        if let LevelChoice::Fixed(level) = options.level {
-            if level as usize >= model.levels.len() {
-                return Err(CpuRenderError::Level { level, count: model.levels.len() });
-            }
-        }
-        if let LevelChoice::Auto { bias } = options.level {
-            if !bias.is_finite() {
-                return Err(CpuRenderError::Options(format!("level bias {bias} is not finite")));
-            }
+        match options.level {
+            LevelChoice::Fixed(level) if level as usize >= model.levels.len() => return Err(CpuRenderError::Level { level, count: model.levels.len() }),
+            LevelChoice::Auto { bias } if !bias.is_finite() => return Err(CpuRenderError::Options(format!("level bias {bias} is not finite"))),
+            _ => {}
         }
         if options.supersampling == 0 || options.supersampling > 16 {
             return Err(CpuRenderError::Options(format!("supersampling {} must be in 1..=16", options.supersampling)));
@@ -168,6 +168,7 @@ impl<'a> Scene<'a> {
         let mut steps = 0;
         let hit = self.tracer.trace(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps);
         out.step_limited = hit == HfTrace::StepLimit;
+        out.steps = steps;
         // The flyaways lie between the top plane and the surface (or the slab's bottom).
         let t_bottom = t_top + self.model.tile.height_scale / -ray.d.z;
         let t_end = match hit {
@@ -222,6 +223,7 @@ impl<'a> Scene<'a> {
                 acc.flyaway_opacity += t.flyaway_opacity;
                 acc.step_limited |= t.step_limited;
                 acc.shadow_step_limited += t.shadow_step_limited;
+                acc.steps += t.steps;
             }
         }
         let n = (s * s) as f32;

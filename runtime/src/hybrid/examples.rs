@@ -39,6 +39,7 @@ pub fn example_meta(tile: &Tile, levels: usize, dims: [u32; 3]) -> BakeMetadata 
 /// texel centre (x, y) (world units) is `depth(x, y)`, and whose every texel at every
 /// level has BRDF `params` in frame (`n`, `t`) (level 0 clustered with one cluster,
 /// coarse levels per texel). No flyaways.
+#[allow(clippy::too_many_arguments)] // a test fixture: every argument is one property of the model
 pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f32, f32) -> f32, params: &ClothParams, n: Vec3, t: Vec3) -> Result<HybridModel, ModelError> {
     let texel = tile.size / Vec2::new(w as f32, h as f32);
     let mut depths = Vec::with_capacity(w as usize * h as usize);
@@ -101,7 +102,7 @@ pub fn sample_model() -> HybridModel {
         let t = Vec3::new((i as f32 * 0.3).cos(), (j as f32 * 0.3).sin(), 0.0);
         (n, t)
     };
-    let lobe = |s: f32| ClothLobe { k: Vec3::new(0.5 + 0.1 * s, 0.4, 0.3), beta: 0.05 + 0.02 * s, gamma: if s as u32 % 3 == 0 { 0.0 } else { 0.3 + 0.1 * s } };
+    let lobe = |s: f32| ClothLobe { k: Vec3::new(0.5 + 0.1 * s, 0.4, 0.3), beta: 0.05 + 0.02 * s, gamma: if (s as u32).is_multiple_of(3) { 0.0 } else { 0.3 + 0.1 * s } };
     let mut levels = Vec::new();
     for level in 0..4 {
         let (lw, lh) = level_dims(w, h, level);
@@ -138,4 +139,96 @@ pub fn sample_model() -> HybridModel {
     let _ = add_flyaways(&mut model, 0, &voxels0, &fly);
     let _ = add_flyaways(&mut model, 1, &voxels1, &fly);
     model
+}
+
+/// A woven-looking synthetic model of `n`×`n` texels for benchmarks: yarn-scale bumps,
+/// warp/weft tangents with fiber-level normal noise, 8 clusters at level 0, two framed
+/// lobes per texel at coarse levels, and sparse flyaways (≈ 2% of columns) downsampled
+/// to every level with alpha = the fraction of filled children. Deterministic in `seed`.
+pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
+    use crate::brdf::twin::SplitMix64;
+    let tile = Tile { origin: Vec2::ZERO, size: Vec2::ONE, top_z: 0.1, height_scale: 0.1, voxel_depth: 0.1 / 64.0 };
+    let yarns = 8.0;
+    let depth = |x: f32, y: f32| 0.05 + 0.02 * (std::f32::consts::TAU * yarns * x).sin() * (std::f32::consts::TAU * yarns * y).sin();
+    let warp = |x: f32, y: f32| ((yarns * x).floor() + (yarns * y).floor()) as i32 % 2 == 0;
+    let texel = 1.0 / n as f32;
+    let centre = |i: u32, j: u32| ((i as f32 + 0.5) * texel, (j as f32 + 0.5) * texel);
+    let depths: Vec<f32> = (0..n).flat_map(|j| (0..n).map(move |i| (i, j))).map(|(i, j)| { let (x, y) = centre(i, j); depth(x, y) }).collect();
+    let height = HeightField { width: n, height: n, codes: HeightField::from_depths(n, n, &depths, tile.height_scale).map(|h| h.codes).unwrap_or_default() };
+    let mut rng = SplitMix64(seed);
+    let frame = |rng: &mut SplitMix64, x: f32, y: f32| {
+        let e = 1e-3;
+        let gx = (depth(x + e, y) - depth(x - e, y)) / (2.0 * e);
+        let gy = (depth(x, y + e) - depth(x, y - e)) / (2.0 * e);
+        // Depth grows downward: the surface normal leans toward increasing depth.
+        let n = (Vec3::new(gx, gy, 1.0) + 0.15 * Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)).normalize();
+        (n, if warp(x, y) { Vec3::X } else { Vec3::Y })
+    };
+    let lobe = |s: f32| ClothLobe { k: Vec3::new(0.6, 0.5, 0.4) * (0.5 + s), beta: 0.05 + 0.1 * s, gamma: 0.4 + s };
+    let mut levels = Vec::new();
+    let count = max_levels(n, n);
+    for level in 0..count {
+        let (lw, lh) = level_dims(n, n, level);
+        let surface = if level == 0 {
+            let mut table = BrdfTable::new();
+            for c in 0..8 {
+                let s = c as f32 / 8.0;
+                table.push(&ClothParams::new(Vec3::new(0.1, 0.05, 0.03) * (1.0 + s), 1.46, 1.0 + s, &[lobe(s), lobe(1.0 - s)]));
+            }
+            let mut texels = Vec::with_capacity((lw * lh) as usize);
+            for j in 0..lh {
+                for i in 0..lw {
+                    let (x, y) = centre(i, j);
+                    let (nn, t) = frame(&mut rng, x, y);
+                    let cluster = ((rng.next_u64() % 4) as u16) + if warp(x, y) { 0 } else { 4 };
+                    texels.push(ClusteredTexel::new(nn, t, cluster));
+                }
+            }
+            Surface::Clustered { texels, table }
+        } else {
+            let mut table = BrdfTable::new();
+            let size = texel * (1u32 << level) as f32;
+            for j in 0..lh {
+                for i in 0..lw {
+                    let (x, y) = ((i as f32 + 0.5) * size, (j as f32 + 0.5) * size);
+                    let (nn, _) = frame(&mut rng, x, y);
+                    table.push_framed(Vec3::new(0.12, 0.06, 0.04), 1.46, 1.5, &[(lobe(0.3), nn, Vec3::X), (lobe(0.6), nn, Vec3::Y)]);
+                }
+            }
+            Surface::PerTexel(table)
+        };
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None });
+    }
+    // Level-0 flyaway voxels, then their downsampling.
+    let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            if rng.next_u64().is_multiple_of(50) {
+                for _ in 0..1 + rng.next_u64() % 3 {
+                    let (x, y) = centre(i, j);
+                    let limit = ((depth(x, y) / tile.voxel_depth) as u64).max(2);
+                    voxels.push((i, j, (rng.next_u64() % limit) as u16, rng.unit_vector()));
+                }
+            }
+        }
+    }
+    voxels.sort_by_key(|v| (v.1, v.0, v.2));
+    voxels.dedup_by_key(|v| (v.0, v.1, v.2));
+    let fly = silk_params();
+    for (level, l) in levels.iter_mut().enumerate() {
+        let mut cells: std::collections::BTreeMap<(u32, u32, u16), (u32, Vec3)> = std::collections::BTreeMap::new();
+        for &(i, j, k, t) in &voxels {
+            let e = cells.entry((i >> level, j >> level, k >> level)).or_insert((0, t));
+            e.0 += 1;
+        }
+        let children = 8f32.powi(level as i32);
+        let mut table = BrdfTable::new();
+        table.push(&fly);
+        let f = Flyaways::from_columns(l.width, l.height, table, |i, j| {
+            cells.range((i, j, 0)..=(i, j, u16::MAX)).map(|(&(_, _, k), &(c, t))| FlyawayVoxel { depth: k, alpha: (c as f32 / children).min(1.0), tangent: t, param: 0 }).collect()
+        });
+        l.flyaways = f.ok();
+    }
+    let meta = BakeMetadata { note: format!("synthetic_model({n}, {seed})"), seed, ..example_meta(&tile, count, [n, n, 64]) };
+    HybridModel { tile, height, levels, meta }
 }

@@ -15,6 +15,9 @@
 //!   ≤ π/131072 = 2.4e-5 rad, and n ⊥ t exactly by construction. Encoded against the
 //!   *decoded* normal, so that decoding reproduces it.
 
+
+// `!(x > 0.0)` is the NaN-aware test (NaN fails it), as the GLSL writes it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 use glam::Vec3;
 use half::f16;
 

@@ -53,7 +53,7 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
         let _ = writeln!(s, "  note: {}", m.note);
     }
     let _ = writeln!(s, "\nsections:");
-    let _ = writeln!(s, "  {:<26} {:>5} {:>10} {:>10} {:>10}  {}", "kind", "level", "offset", "bytes", "crc32", "");
+    let _ = writeln!(s, "  {:<26} {:>5} {:>10} {:>10} {:>10}", "kind", "level", "offset", "bytes", "crc32");
     for sec in &info.sections {
         let _ = writeln!(s, "  {:<26} {:>5} {:>10} {:>10}   {:08x}  {}", sec.kind, sec.level, sec.offset, sec.length, sec.crc32, if sec.optional { "optional" } else { "" });
     }

@@ -225,7 +225,10 @@ fn parse_model_section(index: usize, b: &[u8]) -> Result<ModelHeader, FormatErro
     Ok(ModelHeader { width, height, levels: levels as usize, reading, shadowing: flags & MODEL_FLAG_SHADOWING != 0, tile })
 }
 
-fn parse_meta_section(index: usize, b: &[u8], levels: usize) -> Result<(Aabb, [u32; 3], u64, Vec<f32>, String), FormatError> {
+/// The META section's fields: source bbox, source dims, seed, fit errors, note.
+type MetaFields = (Aabb, [u32; 3], u64, Vec<f32>, String);
+
+fn parse_meta_section(index: usize, b: &[u8], levels: usize) -> Result<MetaFields, FormatError> {
     let bad = |why: String| FormatError::Section { index, kind: "META".into(), level: 0, why };
     if b.len() < 48 {
         return Err(bad(format!("{} bytes; at least 48 expected", b.len())));
