@@ -27,7 +27,7 @@ pub mod shading;
 
 use glam::Vec3;
 
-pub use render::{PixelTrace, Scene, render, render_with_stats};
+pub use render::{PixelTrace, Scene, render, render_with_progress, render_with_stats};
 
 use crate::hybrid::ModelError;
 use crate::scene::{CameraError, LightError};

@@ -241,6 +241,12 @@ pub fn render(model: &HybridModel, camera: &Camera, lights: &[Light], options: &
 
 /// [`render`], with statistics (levels used, hits, step-limited rays).
 pub fn render_with_stats(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<(Image, RenderStats), CpuRenderError> {
+    render_with_progress(model, camera, lights, options, &|| {})
+}
+
+/// [`render_with_stats`], calling `row_done` (from any thread) as each image row
+/// finishes, for a progress bar.
+pub fn render_with_progress(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, row_done: &(dyn Fn() + Sync)) -> Result<(Image, RenderStats), CpuRenderError> {
     let scene = Scene::new(model, camera, lights, options.clone())?;
     let (w, h) = (camera.width, camera.height);
     let levels = model.levels.len();
@@ -255,6 +261,7 @@ pub fn render_with_stats(model: &HybridModel, camera: &Camera, lights: &[Light],
                     t.radiance
                 })
                 .collect();
+            row_done();
             (row, stats)
         })
         .collect();

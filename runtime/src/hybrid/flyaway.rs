@@ -73,6 +73,14 @@ pub struct Flyaways {
     pub table: BrdfTable,
 }
 
+impl FlyawayVoxel {
+    /// The level-0 depth index of source voxel layer `z` (0 at the bottom face) of a
+    /// volume `zres` voxels thick: layers are counted down from the top plane.
+    pub fn depth_of_voxel_layer(z: u32, zres: u32) -> Option<u16> {
+        zres.checked_sub(z + 1).and_then(|k| u16::try_from(k).ok())
+    }
+}
+
 impl Flyaways {
     /// Builds the lists of a `width`×`height` level from each column's voxels (in any
     /// order; they are sorted by depth). Nodes are stored column by column, top down, so

@@ -99,6 +99,15 @@ impl HeightField {
         Ok(HeightField { width, height, codes })
     }
 
+    /// From heights as the geometry stage measures them: `heights` in voxels, z up from
+    /// the source volume's bottom face (texel centres, x fastest), for a volume of `zres`
+    /// voxels of depth `tile.voxel_depth` whose top face is `tile.top_z`. depth below the
+    /// top plane = (zres − h)·voxel_depth.
+    pub fn from_voxel_heights(width: u32, height: u32, heights: &[f32], zres: u32, tile: &Tile) -> Result<HeightField, ModelError> {
+        let depths: Vec<f32> = heights.iter().map(|&h| (zres as f32 - h) * tile.voxel_depth).collect();
+        HeightField::from_depths(width, height, &depths, tile.height_scale)
+    }
+
     /// Depth of texel (i, j) as a fraction of the height scale, in [0, 1].
     #[inline]
     pub fn depth_fraction(&self, i: u32, j: u32) -> f32 {
@@ -291,5 +300,27 @@ impl HybridModel {
             return Err(ModelError::Meta(format!("note is {} bytes; at most 65536", m.note.len())));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hybrid::FlyawayVoxel;
+
+    #[test]
+    fn source_conventions_convert_to_depths_below_the_top() {
+        // A volume of 64 layers over z ∈ [−1, 0.6]: Δz = 0.025.
+        let bbox = Aabb::new(Vec3::new(0.0, 0.0, -1.0), Vec3::new(2.0, 1.0, 0.6));
+        let tile = Tile::from_source(bbox, [40, 20, 64]);
+        assert_eq!((tile.top_z, tile.height_scale, tile.voxel_depth), (0.6, 1.6, 0.025));
+        // A surface 10 voxels below the top (height 54 voxels from the bottom) has depth 0.25.
+        let h = HeightField::from_voxel_heights(2, 1, &[54.0, 64.0], 64, &tile).unwrap();
+        assert!((h.depth_fraction(0, 0) * tile.height_scale - 0.25).abs() < 1.6 / 65535.0);
+        assert_eq!(h.depth_fraction(1, 0), 0.0);
+        assert!(HeightField::from_voxel_heights(1, 1, &[-1.0], 64, &tile).is_err(), "below the bottom face");
+        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(63, 64), Some(0));
+        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(0, 64), Some(63));
+        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(64, 64), None);
     }
 }
