@@ -19,6 +19,11 @@ enum Command {
     Devices(cmd::devices::DevicesArgs),
     /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
     Render(cmd::render::RenderArgs),
+    /// Generate a procedural fabric volume (woven or felt) as a fabric directory.
+    #[command(name = "gen")]
+    Gen(cmd::generate::GenArgs),
+    /// Show what a fabric directory or a .vol file holds.
+    Inspect(cmd::inspect::InspectArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -26,6 +31,8 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Devices(a) => cmd::devices::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::Gen(a) => cmd::generate::run(a),
+        Command::Inspect(a) => cmd::inspect::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
