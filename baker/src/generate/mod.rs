@@ -86,11 +86,18 @@ pub fn generate(params: &GeneratorParams, dims: [usize; 3], seed: u64) -> Result
     generate_with_progress(params, dims, seed, &ProgressBar::hidden()).map(|g| g.volume)
 }
 
-/// A fiber to trace: where its polyline comes from, and its colour before variation.
+/// A fiber to trace: where its polyline comes from. `key` names it stably (yarn, ply,
+/// kind, index), so its random choices (colour variation, loops) do not move when
+/// other fibers are added or removed, e.g. when flyaways are switched off.
 enum Spec {
-    Fiber { yarn: u32, ply: u32, seed: FiberSeed },
-    Hair { yarn: u32, ply: u32, seed: HairSeed },
-    Felt { index: u64 },
+    Fiber { key: u64, yarn: u32, ply: u32, seed: FiberSeed },
+    Hair { key: u64, yarn: u32, ply: u32, seed: HairSeed },
+    Felt { key: u64 },
+}
+
+/// Stable key of fiber `index` of `kind` (0 body, 1 hair, 2 loop) in ply `ply` of yarn `yarn`.
+fn fiber_key(yarn: u32, ply: u32, kind: u64, index: usize) -> u64 {
+    ((yarn as u64) << 40) | ((ply as u64) << 32) | (kind << 28) | index as u64
 }
 
 /// [`generate`], reporting voxelization progress (bands of rows) on `progress`.
@@ -167,8 +174,8 @@ fn crimp_amplitudes(w: &WovenParams, warp_t: f32, weft_t: f32) -> [f32; 2] {
 }
 
 /// A fiber's albedo: its yarn's colour times exp(variation · N(0, 1)) (Rng keyed by fiber).
-fn vary(color: [f32; 3], variation: f32, seed: u64, id: usize) -> Vec3 {
-    let mut rng = Rng::new(seed, stream::FIBER, id as u64);
+fn vary(color: [f32; 3], variation: f32, seed: u64, key: u64) -> Vec3 {
+    let mut rng = Rng::new(seed, stream::FIBER, key);
     (Vec3::from(color) * (variation * rng.normal()).exp()).clamp(Vec3::ZERO, Vec3::ONE)
 }
 
@@ -216,33 +223,34 @@ fn woven_fibers(params: &GeneratorParams, w: &WovenParams, extent: [f32; 3], z_t
     let mut specs = Vec::new();
     let mut hairs = 0;
     for (y, (path, model, _)) in paths.iter().enumerate() {
-        let mut rng = Rng::new(seed, stream::YARN, y as u64);
+        let y = y as u32;
         for ply in 0..model.plies {
-            for s in model.sample_fibers(&mut rng) {
-                specs.push(Spec::Fiber { yarn: y as u32, ply, seed: s });
+            let mut rng = Rng::new(seed, stream::YARN, fiber_key(y, ply, 0, 0));
+            for (k, s) in model.sample_fibers(&mut rng).into_iter().enumerate() {
+                specs.push(Spec::Fiber { key: fiber_key(y, ply, 0, k), yarn: y, ply, seed: s });
             }
-            for s in model.sample_hairs(path.length, &mut rng) {
-                specs.push(Spec::Hair { yarn: y as u32, ply, seed: s });
+            let mut rng = Rng::new(seed, stream::HAIR, fiber_key(y, ply, 1, 0));
+            for (k, s) in model.sample_hairs(path.length, &mut rng).into_iter().enumerate() {
+                specs.push(Spec::Hair { key: fiber_key(y, ply, 1, k), yarn: y, ply, seed: s });
                 hairs += 1;
             }
         }
     }
     let traced: Vec<(Vec<Vec3>, FiberStyle)> = specs
         .par_iter()
-        .enumerate()
-        .map(|(id, spec)| {
-            let (line, yarn) = match spec {
-                Spec::Fiber { yarn, ply, seed: s } => {
+        .map(|spec| {
+            let (line, yarn, key) = match spec {
+                Spec::Fiber { key, yarn, ply, seed: s } => {
                     let (path, model, _) = &paths[*yarn as usize];
-                    (yarn::fiber_polyline(model, path, *ply, s, (seed, id as u64), step), *yarn)
+                    (yarn::fiber_polyline(model, path, *ply, s, (seed, *key), step), *yarn, *key)
                 }
-                Spec::Hair { yarn, ply, seed: s } => {
+                Spec::Hair { key, yarn, ply, seed: s } => {
                     let (path, model, _) = &paths[*yarn as usize];
-                    (yarn::hair_polyline(model, path, *ply, s, step), *yarn)
+                    (yarn::hair_polyline(model, path, *ply, s, step), *yarn, *key)
                 }
                 Spec::Felt { .. } => unreachable!("felt fibers in a woven fabric"),
             };
-            let albedo = vary(paths[yarn as usize].2, params.fiber.albedo_variation, seed, id);
+            let albedo = vary(paths[yarn as usize].2, params.fiber.albedo_variation, seed, key);
             (line, FiberStyle { radius: fiber_radius / h, albedo })
         })
         .collect();
@@ -256,21 +264,22 @@ fn felt_fibers(params: &GeneratorParams, f: &FeltParams, extent: [f32; 3], z_top
     let [n_body, n_hair, n_loop] = felt::counts(f, &layout);
     let length = n_body as f64 * 1.5 * f.fiber_length as f64 + n_hair as f64 * 1.5 * f.hair_length as f64 + n_loop as f64 * 1.5 * (f.loop_span + 2.0 * f.loop_height) as f64;
     check_segments(length / step as f64)?;
-    let specs: Vec<Spec> = (0..(n_body + n_hair + n_loop) as u64).map(|index| Spec::Felt { index }).collect();
+    let specs: Vec<Spec> = (0..n_body)
+        .map(|i| Spec::Felt { key: fiber_key(0, 0, 0, i) })
+        .chain((0..n_hair).map(|i| Spec::Felt { key: fiber_key(0, 0, 1, i) }))
+        .chain((0..n_loop).map(|i| Spec::Felt { key: fiber_key(0, 0, 2, i) }))
+        .collect();
     let traced: Vec<(Vec<Vec3>, FiberStyle)> = specs
         .par_iter()
-        .enumerate()
-        .map(|(id, spec)| {
-            let Spec::Felt { index } = spec else { unreachable!("woven fibers in a felt") };
-            let i = *index as usize;
-            let fiber = if i < n_body {
-                felt::body_fiber(f, &layout, seed, *index, step)
-            } else if i < n_body + n_hair {
-                felt::hair(f, &layout, seed, (i - n_body) as u64, step)
-            } else {
-                felt::fiber_loop(f, &layout, seed, (i - n_body - n_hair) as u64, step)
+        .map(|spec| {
+            let Spec::Felt { key } = *spec else { unreachable!("woven fibers in a felt") };
+            let index = key & 0x0fff_ffff;
+            let fiber = match key >> 28 {
+                0 => felt::body_fiber(f, &layout, seed, index, step),
+                1 => felt::hair(f, &layout, seed, index, step),
+                _ => felt::fiber_loop(f, &layout, seed, index, step),
             };
-            let albedo = vary(f.colors[fiber.color], params.fiber.albedo_variation, seed, id);
+            let albedo = vary(f.colors[fiber.color], params.fiber.albedo_variation, seed, key);
             (fiber.points, FiberStyle { radius: fiber_radius / h, albedo })
         })
         .collect();
@@ -291,5 +300,6 @@ pub fn provenance(preset: Option<Preset>, params: &GeneratorParams, dims: [usize
     t.insert("voxel_size".into(), toml::Value::Float(stats.voxel_size as f64));
     t.insert("fiber_diameter_voxels".into(), toml::Value::Float(stats.fiber_diameter_voxels as f64));
     t.insert("params".into(), toml::Value::Table(params.to_table()));
+    t.iter_mut().for_each(|(_, v)| params::shorten_floats(v));
     t
 }

@@ -377,8 +377,25 @@ impl GeneratorParams {
         Ok(())
     }
 
-    /// The parameters as a TOML table.
+    /// The parameters as a TOML table (floats written as their shortest f32 text, so
+    /// 0.42 reads 0.42, not 0.41999998688697815).
     pub fn to_table(&self) -> toml::Table {
-        toml::Table::try_from(self).unwrap_or_default()
+        let mut t = toml::Table::try_from(self).unwrap_or_default();
+        t.iter_mut().for_each(|(_, v)| shorten_floats(v));
+        t
+    }
+}
+
+/// Rewrites f64 values that came from f32 with the f32's shortest decimal text.
+pub fn shorten_floats(v: &mut toml::Value) {
+    match v {
+        toml::Value::Float(f) => {
+            if let Ok(g) = (*f as f32).to_string().parse::<f64>() {
+                *f = g;
+            }
+        }
+        toml::Value::Array(a) => a.iter_mut().for_each(shorten_floats),
+        toml::Value::Table(t) => t.iter_mut().for_each(|(_, v)| shorten_floats(v)),
+        _ => {}
     }
 }

@@ -120,7 +120,7 @@ impl Preset {
                 material: MaterialSpec { roughness: 0.3, fiber_optical_depth: 2.0 },
                 fabric: FabricParams::Felt(FeltParams {
                     thickness: 0.19,
-                    packing: 0.3,
+                    packing: 0.4,
                     fiber_length: 1.5,
                     curl: 4.0,
                     tilt: 0.18,
