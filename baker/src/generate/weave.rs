@@ -37,7 +37,7 @@ impl Weave {
         let n = self.period() as i64;
         let phase = (j as i64 - (self.step as i64) * (i as i64)).rem_euclid(n);
         match self.kind {
-            PatternKind::Plain => (i + j) % 2 == 0,
+            PatternKind::Plain => (i + j).is_multiple_of(2),
             PatternKind::Twill => phase < self.over as i64,
             PatternKind::Satin => phase != 0,
         }
