@@ -24,6 +24,8 @@ enum Command {
     Gen(cmd::generate::GenArgs),
     /// Show what a fabric directory or a .vol file holds.
     Inspect(cmd::inspect::InspectArgs),
+    /// Open the GPU renderer in a window: orbit camera, live light and exposure.
+    View(cmd::view::ViewArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -33,6 +35,7 @@ fn main() -> std::process::ExitCode {
         Command::Render(a) => cmd::render::run(a),
         Command::Gen(a) => cmd::generate::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::View(a) => cmd::view::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -4,3 +4,4 @@ pub mod devices;
 pub mod generate;
 pub mod inspect;
 pub mod render;
+pub mod view;
