@@ -267,9 +267,12 @@ pub fn decode(encoding: Encoding, channels: usize, raw: &[u8], out: &mut [f32]) 
     }
 }
 
-/// Encodes values (channels interleaved) and appends the bytes to `out`. On a value the
-/// encoding cannot hold, returns (index of the value or voxel, value text, reason).
-pub fn encode(encoding: Encoding, channels: usize, values: &[f32], out: &mut Vec<u8>) -> Result<(), (usize, String, &'static str)> {
+/// A value an encoding cannot hold: (index of the value, or of the voxel for quantized
+/// directions; the value as text; why).
+pub type Unencodable = (usize, String, &'static str);
+
+/// Encodes values (channels interleaved) and appends the bytes to `out`.
+pub fn encode(encoding: Encoding, channels: usize, values: &[f32], out: &mut Vec<u8>) -> Result<(), Unencodable> {
     match encoding {
         Encoding::Float32 => {
             out.reserve(values.len() * 4);
@@ -445,7 +448,7 @@ impl VolWriter {
         // then write them in order; the first unencodable value in file order is reported.
         const PIECE: usize = 1 << 16;
         let enc = self.header.encoding;
-        let pieces: Vec<Result<Vec<u8>, (usize, String, &'static str)>> = values
+        let pieces: Vec<Result<Vec<u8>, Unencodable>> = values
             .par_chunks(PIECE * c)
             .enumerate()
             .map(|(k, chunk)| {
