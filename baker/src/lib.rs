@@ -1,4 +1,5 @@
 //! The baker: fabric volumes, the reference path tracer, and the conversion of a
 //! volume into a hybrid model (../shared/DESIGN.md).
 
+pub mod reference;
 pub mod volume;
