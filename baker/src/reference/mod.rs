@@ -1,11 +1,22 @@
 //! The reference renderer: an unbiased volumetric path tracer of the input fabric
 //! (../shared/DESIGN.md §4). See `medium` for the conventions it shares with Mitsuba 3.
 
+pub mod integrator;
 pub mod majorant;
+pub mod measure;
 pub mod medium;
+pub mod render;
 pub mod rng;
 pub mod sggx;
 pub mod tracking;
+#[cfg(test)]
+mod validation;
+
+pub use integrator::{PathSettings, PathStats};
+pub use measure::MeasureScene;
+pub use medium::{Lookup, MediumOptions};
+pub use render::{RenderSettings, RenderStats, render};
+pub use tracking::TracedMedium;
 
 use glam::Vec3;
 

@@ -15,9 +15,11 @@
 
 use glam::Vec3;
 
-use super::majorant::MajorantGrid;
-use super::medium::{Footprint, Medium};
+use super::ReferenceError;
+use super::majorant::{DEFAULT_BLOCK, MajorantGrid};
+use super::medium::{Footprint, Medium, MediumOptions};
 use super::rng::Rng;
+use crate::volume::FabricVolume;
 
 /// A ray in the medium's grid coordinates, with its world direction.
 #[derive(Clone, Copy, Debug)]
@@ -61,17 +63,29 @@ pub enum FreeFlight {
     Truncated,
 }
 
-/// The tracking state shared by the path tracer's walks.
-#[derive(Clone, Copy)]
-pub struct Tracker<'a, 'v> {
-    pub medium: &'a Medium<'v>,
-    pub majorants: &'a MajorantGrid,
+/// A medium with its majorant grid: what the path tracer walks through. Build it
+/// once per volume (and mask); it is immutable and shared by all threads.
+pub struct TracedMedium<'v> {
+    pub medium: Medium<'v>,
+    pub majorants: MajorantGrid,
 }
 
 /// Transmittance estimates below this play Russian roulette.
 const RR_TRANSMITTANCE: f32 = 0.1;
 
-impl Tracker<'_, '_> {
+impl<'v> TracedMedium<'v> {
+    /// The medium of `volume` with a majorant grid of `DEFAULT_BLOCK` blocks.
+    pub fn new(volume: &'v FabricVolume, options: MediumOptions<'_>) -> Result<TracedMedium<'v>, ReferenceError> {
+        Self::with_block(volume, options, DEFAULT_BLOCK)
+    }
+
+    /// As `new`, with majorant blocks of `block` voxels.
+    pub fn with_block(volume: &'v FabricVolume, options: MediumOptions<'_>, block: [usize; 3]) -> Result<TracedMedium<'v>, ReferenceError> {
+        let medium = Medium::new(volume, options)?;
+        let majorants = MajorantGrid::new(&medium, block);
+        Ok(TracedMedium { medium, majorants })
+    }
+
     /// Samples the distance to the next real collision along `ray` within
     /// [t_min, t_max] (delta tracking).
     pub fn sample_collision(&self, ray: &GridRay, t_min: f32, t_max: f32, rng: &mut Rng) -> FreeFlight {
@@ -157,9 +171,8 @@ impl Tracker<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reference::majorant::DEFAULT_BLOCK;
-    use crate::reference::medium::{Lookup, MediumOptions};
-    use crate::volume::{Aabb, FabricVolume, MaterialParams, Voxel};
+    use crate::reference::medium::Lookup;
+    use crate::volume::{Aabb, MaterialParams, Voxel};
 
     /// A heterogeneous anisotropic volume: random densities and fiber directions.
     fn volume() -> FabricVolume {
@@ -193,14 +206,13 @@ mod tests {
         let v = volume();
         for lookup in [Lookup::Trilinear, Lookup::Nearest] {
             for periodic in [false, true] {
-                let m = Medium::new(&v, MediumOptions { lookup, periodic, mask: None }).unwrap();
-                let grid = MajorantGrid::new(&m, DEFAULT_BLOCK);
-                let tracker = Tracker { medium: &m, majorants: &grid };
+                let tracker = TracedMedium::new(&v, MediumOptions { lookup, periodic, mask: None }).unwrap();
+                let m = &tracker.medium;
                 for (k, (o, d)) in [(Vec3::new(1.0, 1.0, 2.0), Vec3::new(0.3, 0.1, -1.0)), (Vec3::new(0.1, 1.9, 0.4), Vec3::new(1.0, -0.4, 0.05))].into_iter().enumerate() {
-                    let ray = GridRay::new(&m, o, d.normalize());
+                    let ray = GridRay::new(m, o, d.normalize());
                     let Some((t0, t1)) = m.clip(ray.g0, ray.dg, 0.0, f32::INFINITY) else { panic!("ray misses") };
                     let t1 = t1.min(t0 + 5.0);
-                    let exact = quadrature_transmittance(&m, &ray, t0, t1);
+                    let exact = quadrature_transmittance(m, &ray, t0, t1);
                     let n = 40_000u64;
                     let (mut ratio, mut escaped) = (0.0f64, 0u64);
                     for i in 0..n {
@@ -224,10 +236,9 @@ mod tests {
     fn collision_distances_follow_sigma_t_times_transmittance() {
         // The CDF of the first collision distance is 1 − T(t); compare at a few t.
         let v = volume();
-        let m = Medium::new(&v, MediumOptions::default()).unwrap();
-        let grid = MajorantGrid::new(&m, DEFAULT_BLOCK);
-        let tracker = Tracker { medium: &m, majorants: &grid };
-        let ray = GridRay::new(&m, Vec3::new(0.3, 0.7, 1.0), Vec3::new(0.4, 0.2, -1.0).normalize());
+        let tracker = TracedMedium::new(&v, MediumOptions::default()).unwrap();
+        let m = &tracker.medium;
+        let ray = GridRay::new(m, Vec3::new(0.3, 0.7, 1.0), Vec3::new(0.4, 0.2, -1.0).normalize());
         let (t0, t1) = m.clip(ray.g0, ray.dg, 0.0, f32::INFINITY).unwrap();
         let n = 40_000u64;
         let ts: Vec<f32> = (0..n)
@@ -239,7 +250,7 @@ mod tests {
         for q in [0.25f32, 0.5, 0.75, 1.0] {
             let t = t0 + q * (t1 - t0);
             let cdf = ts.iter().filter(|&&x| x <= t).count() as f64 / n as f64;
-            let exact = 1.0 - quadrature_transmittance(&m, &ray, t0, t);
+            let exact = 1.0 - quadrature_transmittance(m, &ray, t0, t);
             assert!((cdf - exact).abs() < 5.0 * 0.5 / (n as f64).sqrt(), "t = {t}: {cdf} vs {exact}");
         }
     }
