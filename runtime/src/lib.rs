@@ -1,5 +1,11 @@
 //! The runtime: hybrid fabric models (format, BRDF, CPU renderer) and the Vulkan
 //! renderer that draws them (../shared/DESIGN.md §6–§7).
 
+// Linked for its glslang/SPIRV-Tools link lines (see runtime/shaderc-link).
+use shaderc_link as _;
+
+pub mod gpu;
 pub mod image;
+pub mod metrics;
+pub mod vk;
 pub mod scene;

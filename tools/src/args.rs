@@ -100,8 +100,22 @@ pub struct OutputArgs {
     #[arg(long, short)]
     pub out: std::path::PathBuf,
     /// Exposure applied before the sRGB mapping of PNG output.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub exposure: f32,
+}
+
+impl OutputArgs {
+    /// Checks the output path and exposure before any work is done.
+    pub fn validate(&self) -> Result<()> {
+        match self.out.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            Some("png") | Some("exr") => {}
+            _ => bail!("{}: unknown image extension (use .exr or .png)", self.out.display()),
+        }
+        if !(self.exposure.is_finite() && self.exposure > 0.0) {
+            bail!("--exposure {} must be a positive number", self.exposure);
+        }
+        Ok(())
+    }
 }
 
 impl CameraArgs {

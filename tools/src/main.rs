@@ -1,8 +1,8 @@
 //! `fabric`: generate fabric volumes, path-trace references, bake hybrid models and
 //! render them. Run `fabric --help` for the commands.
 
-#[allow(dead_code)] // used by the rendering commands as they land
 mod args;
+mod cmd;
 
 use clap::{Parser, Subcommand};
 
@@ -15,17 +15,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Print the version.
-    Version,
+    /// List the Vulkan devices and which one would be chosen.
+    Devices(cmd::devices::DevicesArgs),
+    /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
+    Render(cmd::render::RenderArgs),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Version => {
-            println!("fabric {}", env!("CARGO_PKG_VERSION"));
-            Ok::<(), anyhow::Error>(())
-        }
+        Command::Devices(a) => cmd::devices::run(a),
+        Command::Render(a) => cmd::render::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -3,9 +3,11 @@
 pub mod aabb;
 pub mod camera;
 pub mod light;
+pub mod mesh;
 pub mod ray;
 
 pub use aabb::Aabb;
 pub use camera::{Camera, CameraError, CameraFrame, Projection, direction_from_angles};
+pub use mesh::{Mesh, MeshError, Vertex};
 pub use light::{Light, LightError, LightSample};
 pub use ray::Ray;

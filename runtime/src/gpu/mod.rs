@@ -1,0 +1,9 @@
+//! The GPU renderer, built on the thin Vulkan layer in [`crate::vk`] (no `unsafe` here).
+
+pub mod frame;
+pub mod mesh_pass;
+pub mod target;
+
+pub use frame::FrameUniforms;
+pub use mesh_pass::{MeshPass, RenderedFrame};
+pub use target::OffscreenTarget;

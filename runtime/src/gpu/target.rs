@@ -1,0 +1,51 @@
+//! The offscreen render target: an RGBA16F color image (linear radiance) and a D32
+//! depth image, read back into a linear [`crate::image::Image`].
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use ash::vk;
+
+use crate::vk::{Buffer, Device, Image2d, Recorder, VkError, VkResult};
+
+pub const COLOR_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+pub struct OffscreenTarget {
+    pub color: Image2d,
+    pub depth: Image2d,
+    pub readback: Buffer,
+}
+
+impl OffscreenTarget {
+    pub fn new(device: &Arc<Device>, width: u32, height: u32) -> VkResult<OffscreenTarget> {
+        let color = Image2d::new(device, "offscreen color", width, height, COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::STORAGE)?;
+        let depth = Image2d::new(device, "offscreen depth", width, height, DEPTH_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT)?;
+        let readback = color.readback_buffer()?;
+        Ok(OffscreenTarget { color, depth, readback })
+    }
+
+    /// Transitions both attachments for rendering (contents discarded).
+    pub fn record_begin(&self, rec: &Recorder<'_>) {
+        rec.image_barrier(&self.color, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+        rec.image_barrier(&self.depth, vk::ImageLayout::UNDEFINED, vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL);
+    }
+
+    /// Records the copy of the color image into the readback buffer.
+    pub fn record_readback(&self, rec: &Recorder<'_>) {
+        rec.copy_image_to_buffer(&self.color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, &self.readback);
+    }
+
+    /// Decodes the readback buffer (after the submission completed) into linear RGB.
+    pub fn to_image(&self) -> VkResult<crate::image::Image> {
+        let bytes = self.readback.mapped().ok_or_else(|| VkError::Invalid("readback buffer is not mapped".into()))?;
+        let (w, h) = (self.color.width, self.color.height);
+        let halves: &[u16] = bytemuck::try_cast_slice(bytes).map_err(|e| VkError::Invalid(format!("readback layout: {e}")))?;
+        let pixels = halves
+            .chunks_exact(4)
+            .map(|p| Vec3::new(half::f16::from_bits(p[0]).to_f32(), half::f16::from_bits(p[1]).to_f32(), half::f16::from_bits(p[2]).to_f32()))
+            .collect();
+        Ok(crate::image::Image { width: w, height: h, pixels })
+    }
+}

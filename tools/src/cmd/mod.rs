@@ -1,0 +1,4 @@
+//! One module per `fabric` subcommand.
+
+pub mod devices;
+pub mod render;
