@@ -17,6 +17,10 @@ struct Cli {
 enum Command {
     /// List the Vulkan devices and which one would be chosen.
     Devices(cmd::devices::DevicesArgs),
+    /// Path-trace the input fabric volume (the reference renderer) and print paths/s.
+    Reference(cmd::reference::ReferenceArgs),
+    /// Compare image A with reference B: relative RMSE, mean differences, FLIP.
+    Diff(cmd::diff::DiffArgs),
     /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
     Render(cmd::render::RenderArgs),
 }
@@ -26,6 +30,8 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Devices(a) => cmd::devices::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::Reference(a) => cmd::reference::run(a),
+        Command::Diff(a) => cmd::diff::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
