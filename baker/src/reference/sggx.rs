@@ -205,6 +205,8 @@ mod tests {
         vec![
             Sggx::IDENTITY,
             Sggx::fiber(Vec3::X, 0.5),
+            Sggx::fiber(Vec3::Y, 0.3),
+            Sggx::fiber(Vec3::new(0.6, 0.8, 0.0), 0.3),
             Sggx::fiber(Vec3::new(0.3, -0.5, 0.8).normalize(), 0.3),
             // A convex combination of two fibers (what trilinear interpolation makes).
             {
@@ -269,7 +271,7 @@ mod tests {
         let (n_mu, n_phi, sub) = (16usize, 32usize, 8usize);
         let n_samples = 100_000u64;
         for (ci, s) in test_matrices().into_iter().enumerate() {
-            for (wi_i, wi) in [Vec3::Z, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, 0.9, 0.3).normalize()].into_iter().enumerate() {
+            for (wi_i, wi) in [Vec3::Z, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, 0.9, 0.3).normalize(), Vec3::new(0.0, -0.85, 0.52).normalize()].into_iter().enumerate() {
                 let mut observed = vec![0.0f64; n_mu * n_phi];
                 let mut rng = Rng::new(99, (ci * 10 + wi_i) as u64, 0);
                 for _ in 0..n_samples {
