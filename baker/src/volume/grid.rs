@@ -129,7 +129,7 @@ pub struct FabricVolume {
 
 impl FabricVolume {
     /// An empty volume. The caller guarantees non-zero dims and a valid box (readers
-    /// and the generator check; see `volume::io` for the user-facing errors).
+    /// and the generator check; see `volume::fabric_dir` for the user-facing errors).
     pub fn new(dims: [usize; 3], bbox: Aabb, material: MaterialParams) -> FabricVolume {
         let n = dims[0] * dims[1] * dims[2];
         FabricVolume { dims, bbox, voxels: vec![Voxel::EMPTY; n], material }
