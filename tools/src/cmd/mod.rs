@@ -3,5 +3,4 @@
 pub mod devices;
 pub mod diff;
 pub mod reference;
-mod volume_input;
 pub mod render;

@@ -11,6 +11,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use fabric_baker::reference::{Lookup, MediumOptions, PathSettings, RenderSettings, TracedMedium, render};
+use fabric_baker::volume::{MaterialOverrides, load_fabric_with_progress};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::args::{CameraArgs, LightArgs, OutputArgs};
@@ -108,7 +109,10 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
 
 fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
     let t_load = Instant::now();
-    let volume = super::volume_input::load(&args.dir, args.density_scale, args.roughness)?;
+    let load_bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(0) };
+    let overrides = MaterialOverrides { density_scale: args.density_scale, roughness: args.roughness };
+    let volume = load_fabric_with_progress(&args.dir, &overrides, &load_bar).with_context(|| format!("cannot load fabric {}", args.dir.display()))?;
+    load_bar.finish_and_clear();
     let load_seconds = t_load.elapsed().as_secs_f64();
     let camera = args.camera.camera(volume.bbox())?;
     let light = args.light.light()?;
