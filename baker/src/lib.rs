@@ -2,4 +2,5 @@
 //! volume into a hybrid model (../shared/DESIGN.md).
 
 pub mod generate;
+pub mod reference;
 pub mod volume;

@@ -1,7 +1,9 @@
 //! One module per `fabric` subcommand.
 
 pub mod devices;
+pub mod diff;
 pub mod generate;
 pub mod inspect;
+pub mod reference;
 pub mod render;
 pub mod view;
