@@ -11,10 +11,10 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use fabric_baker::reference::{Lookup, MediumOptions, PathSettings, RenderSettings, TracedMedium, render};
-use fabric_baker::volume::{MaterialOverrides, load_fabric_with_progress};
+use fabric_baker::volume::load_fabric_with_progress;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::args::{CameraArgs, LightArgs, OutputArgs};
+use crate::args::{CameraArgs, LightArgs, MaterialArgs, OutputArgs};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum LookupArg {
@@ -50,12 +50,8 @@ pub struct ReferenceArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Override material.toml's density scale (σ_t = scale · ρ · σ(ω)).
-    #[arg(long)]
-    pub density_scale: Option<f32>,
-    /// Override material.toml's SGGX fiber roughness σ.
-    #[arg(long)]
-    pub roughness: Option<f32>,
+    #[command(flatten)]
+    pub material: MaterialArgs,
     /// Majorant grid block in voxels, BXxBYxBZ.
     #[arg(long, value_parser = parse_block, default_value = "4x4x4")]
     pub block: [usize; 3],
@@ -110,7 +106,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
 fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
     let t_load = Instant::now();
     let load_bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(0) };
-    let overrides = MaterialOverrides { density_scale: args.density_scale, roughness: args.roughness };
+    let overrides = args.material.overrides()?;
     let volume = load_fabric_with_progress(&args.dir, &overrides, &load_bar).with_context(|| format!("cannot load fabric {}", args.dir.display()))?;
     load_bar.finish_and_clear();
     let load_seconds = t_load.elapsed().as_secs_f64();
