@@ -57,3 +57,60 @@ fn bad_flags_are_rejected_with_a_message() {
         assert!(stderr.to_lowercase().contains(expect), "{args:?}: expected '{expect}' in: {stderr}");
     }
 }
+
+/// An X server for window tests: Xvfb on a display number of our own.
+struct Xvfb(std::process::Child, String);
+
+impl Xvfb {
+    fn start() -> Xvfb {
+        let display = format!(":{}", 100 + std::process::id() % 400);
+        let child = Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("Xvfb is needed for window tests (apt-get install xvfb; README's set-up installs it)");
+        // Wait for the server's socket.
+        let sock = format!("/tmp/.X11-unix/X{}", &display[1..]);
+        for _ in 0..100 {
+            if std::path::Path::new(&sock).exists() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        Xvfb(child, display)
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn the_window_presents_what_offscreen_rendering_renders() {
+    let x = Xvfb::start();
+    let shot = tmp("view.png");
+    let o = fabric().args(["view", "--frames", "4", "--size", "160x120", "--screenshot"]).arg(&shot).env("DISPLAY", &x.1).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "fabric view failed: {stderr}");
+    assert!(!stderr.contains("validation error"), "{stderr}");
+    let offscreen = tmp("offscreen.png");
+    let o = fabric().args(["render", "--size", "160x120", "--out"]).arg(&offscreen).output().unwrap();
+    assert!(o.status.success());
+    let a = fabric_runtime::image::Image::read(&shot, 1.0).unwrap();
+    let b = fabric_runtime::image::Image::read(&offscreen, 1.0).unwrap();
+    // Same renderer, same camera and light: identical up to nothing at all.
+    let f = fabric_runtime::metrics::flip(&a, &b, 1.0).unwrap();
+    assert!(f.mean < 1e-3, "window and offscreen frames differ: FLIP mean {}", f.mean);
+}
+
+#[test]
+fn view_without_a_display_is_a_clear_error() {
+    let o = fabric().args(["view", "--frames", "1"]).env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && !stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("DISPLAY"), "{stderr}");
+}

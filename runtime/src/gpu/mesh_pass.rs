@@ -12,7 +12,7 @@ use crate::scene::{Camera, Light, Mesh, Vertex};
 use ash::vk;
 
 use crate::vk::{
-    BindingKind, Buffer, ColorTarget, DescriptorSet, DescriptorSetLayout, Device, GraphicsDesc, Image2d, MemoryLocation, Pipeline, PipelineLayout, Resource, Sampler, ShaderModule,
+    BindingKind, Buffer, ColorTarget, Recorder, DescriptorSet, DescriptorSetLayout, Device, GraphicsDesc, Image2d, MemoryLocation, Pipeline, PipelineLayout, Resource, Sampler, ShaderModule,
     Specialization, Timestamps, VkError, VkResult,
 };
 
@@ -82,37 +82,76 @@ impl MeshPass {
         Ok(MeshPass { device: device.clone(), pipeline, set_layout, texture, sampler })
     }
 
-    /// Renders `mesh` and reads the image back.
-    pub fn render(&self, mesh: &Mesh, camera: &Camera, light: &Light, base_color: Vec3) -> VkResult<RenderedFrame> {
+    /// Uploads a mesh for drawing.
+    pub fn upload(&self, mesh: &Mesh) -> VkResult<GpuMesh> {
         if mesh.indices.is_empty() || mesh.vertices.is_empty() {
             return Err(VkError::Invalid("mesh has no triangles".into()));
         }
-        let device = &self.device;
-        let (near, far) = depth_range(camera, mesh.bounds());
-        let uniforms = FrameUniforms::new(camera, light, base_color, near, far);
-        let ubo = Buffer::new(device, "frame uniforms", core::mem::size_of::<FrameUniforms>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu)?;
-        ubo.write_mapped(bytemuck::bytes_of(&uniforms))?;
-        let vbuf = Buffer::with_data(device, "mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?;
-        let ibuf = Buffer::with_data(device, "mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?;
-        let set = DescriptorSet::new(device, &self.set_layout, &[Resource::Buffer(&ubo), Resource::Sampled(&self.texture, &self.sampler)])?;
-        let target = OffscreenTarget::new(device, camera.width, camera.height)?;
-        let timestamps = Timestamps::new(device, 2)?;
-        device.record_and_run("mesh pass", |rec| {
+        Ok(GpuMesh {
+            vertices: Buffer::with_data(&self.device, "mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
+            indices: Buffer::with_data(&self.device, "mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            index_count: mesh.indices.len() as u32,
+            bounds: mesh.bounds(),
+        })
+    }
+
+    /// Per-frame resources (uniform buffer and descriptor set); reuse them across frames
+    /// once the previous frame has completed.
+    pub fn frame_resources(&self) -> VkResult<MeshFrame> {
+        let ubo = Buffer::new(&self.device, "frame uniforms", core::mem::size_of::<FrameUniforms>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu)?;
+        let set = DescriptorSet::new(&self.device, &self.set_layout, &[Resource::Buffer(&ubo), Resource::Sampled(&self.texture, &self.sampler)])?;
+        Ok(MeshFrame { ubo, set })
+    }
+
+    /// Writes the frame's uniforms (the GPU must not be using `frame`).
+    pub fn update(&self, frame: &MeshFrame, mesh: &GpuMesh, camera: &Camera, light: &Light, base_color: Vec3) -> VkResult<()> {
+        let (near, far) = depth_range(camera, mesh.bounds);
+        frame.ubo.write_mapped(bytemuck::bytes_of(&FrameUniforms::new(camera, light, base_color, near, far)))
+    }
+
+    /// Records the draw into `target` (attachments transitioned here; the color image
+    /// is left in COLOR_ATTACHMENT_OPTIMAL).
+    pub fn record(&self, rec: &Recorder<'_>, target: &OffscreenTarget, mesh: &GpuMesh, frame: &MeshFrame) {
+        target.record_begin(rec);
+        rec.begin_rendering(&ColorTarget { image: &target.color, clear: [0.0, 0.0, 0.0, 1.0] }, Some(&target.depth));
+        rec.bind_pipeline(&self.pipeline);
+        rec.bind_sets(&self.pipeline, &[&frame.set]);
+        rec.bind_vertex_buffer(&mesh.vertices);
+        rec.bind_index_buffer_u32(&mesh.indices);
+        rec.draw_indexed(mesh.index_count);
+        rec.end_rendering();
+    }
+
+    /// Renders `mesh` offscreen and reads the image back.
+    pub fn render(&self, mesh: &Mesh, camera: &Camera, light: &Light, base_color: Vec3) -> VkResult<RenderedFrame> {
+        let gpu_mesh = self.upload(mesh)?;
+        let frame = self.frame_resources()?;
+        self.update(&frame, &gpu_mesh, camera, light, base_color)?;
+        let target = OffscreenTarget::new(&self.device, camera.width, camera.height)?;
+        let timestamps = Timestamps::new(&self.device, 2)?;
+        self.device.record_and_run("mesh pass", |rec| {
             rec.reset_timestamps(&timestamps);
-            target.record_begin(rec);
             rec.timestamp(&timestamps, 0);
-            rec.begin_rendering(&ColorTarget { image: &target.color, clear: [0.0, 0.0, 0.0, 1.0] }, Some(&target.depth));
-            rec.bind_pipeline(&self.pipeline);
-            rec.bind_sets(&self.pipeline, &[&set]);
-            rec.bind_vertex_buffer(&vbuf);
-            rec.bind_index_buffer_u32(&ibuf);
-            rec.draw_indexed(mesh.indices.len() as u32);
-            rec.end_rendering();
+            self.record(rec, &target, &gpu_mesh, &frame);
             rec.timestamp(&timestamps, 1);
             target.record_readback(rec);
         })?;
         Ok(RenderedFrame { image: target.to_image()?, gpu_ms: timestamps.elapsed_ms(0, 1)? })
     }
+}
+
+/// A mesh in GPU buffers.
+pub struct GpuMesh {
+    vertices: Buffer,
+    indices: Buffer,
+    index_count: u32,
+    pub bounds: crate::scene::Aabb,
+}
+
+/// Uniforms and descriptor set of one frame of the mesh pass.
+pub struct MeshFrame {
+    ubo: Buffer,
+    set: DescriptorSet,
 }
 
 /// Near and far planes that enclose `bounds` as seen from the camera.

@@ -3,7 +3,9 @@
 pub mod frame;
 pub mod mesh_pass;
 pub mod target;
+pub mod tonemap;
 
 pub use frame::FrameUniforms;
-pub use mesh_pass::{MeshPass, RenderedFrame};
+pub use mesh_pass::{GpuMesh, MeshFrame, MeshPass, RenderedFrame};
 pub use target::OffscreenTarget;
+pub use tonemap::TonemapPass;

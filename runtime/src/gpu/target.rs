@@ -20,7 +20,7 @@ pub struct OffscreenTarget {
 
 impl OffscreenTarget {
     pub fn new(device: &Arc<Device>, width: u32, height: u32) -> VkResult<OffscreenTarget> {
-        let color = Image2d::new(device, "offscreen color", width, height, COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::STORAGE)?;
+        let color = Image2d::new(device, "offscreen color", width, height, COLOR_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED)?;
         let depth = Image2d::new(device, "offscreen depth", width, height, DEPTH_FORMAT, vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT)?;
         let readback = color.readback_buffer()?;
         Ok(OffscreenTarget { color, depth, readback })
@@ -32,9 +32,15 @@ impl OffscreenTarget {
         rec.image_barrier(&self.depth, vk::ImageLayout::UNDEFINED, vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL);
     }
 
-    /// Records the copy of the color image into the readback buffer.
+    /// Records the copy of the color image (just rendered, in COLOR_ATTACHMENT_OPTIMAL)
+    /// into the readback buffer.
     pub fn record_readback(&self, rec: &Recorder<'_>) {
-        rec.copy_image_to_buffer(&self.color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, &self.readback);
+        self.record_readback_from(rec, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+    }
+
+    /// Like [`Self::record_readback`] with the color image in `layout`.
+    pub fn record_readback_from(&self, rec: &Recorder<'_>, layout: vk::ImageLayout) {
+        rec.copy_image_to_buffer(&self.color, layout, &self.readback);
     }
 
     /// Decodes the readback buffer (after the submission completed) into linear RGB.

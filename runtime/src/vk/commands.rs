@@ -136,3 +136,23 @@ impl Device {
         self.run_commands(label, |cb| record(&Recorder { device: self, cb }))
     }
 }
+
+impl Recorder<'_> {
+    /// Begins dynamic rendering into a raw view (a swapchain image) of `width` × `height`.
+    pub fn begin_rendering_view(&self, view: vk::ImageView, width: u32, height: u32, clear: [f32; 4]) {
+        let color_att = [vk::RenderingAttachmentInfo::default()
+            .image_view(view)
+            .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::STORE)
+            .clear_value(vk::ClearValue { color: vk::ClearColorValue { float32: clear } })];
+        let area = vk::Rect2D { offset: vk::Offset2D { x: 0, y: 0 }, extent: vk::Extent2D { width, height } };
+        let info = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(&color_att);
+        // SAFETY: cb is recording; the view's image is in COLOR_ATTACHMENT_OPTIMAL (caller).
+        unsafe {
+            self.device.raw.cmd_begin_rendering(self.cb, &info);
+            self.device.raw.cmd_set_viewport(self.cb, 0, &[vk::Viewport { x: 0.0, y: 0.0, width: width as f32, height: height as f32, min_depth: 0.0, max_depth: 1.0 }]);
+            self.device.raw.cmd_set_scissor(self.cb, 0, &[area]);
+        }
+    }
+}

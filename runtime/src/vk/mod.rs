@@ -12,6 +12,7 @@ pub mod image;
 pub mod instance;
 pub mod pipeline;
 pub mod shader;
+pub mod swapchain;
 pub mod sync;
 pub mod timing;
 
@@ -24,6 +25,7 @@ pub use image::{Image2d, Sampler};
 pub use instance::{Instance, InstanceOptions, ValidationLog};
 pub use pipeline::{GraphicsDesc, Pipeline, PipelineLayout, Specialization};
 pub use shader::ShaderModule;
+pub use swapchain::{Acquired, Surface, Swapchain};
 pub use timing::Timestamps;
 
 pub use ash::vk;
