@@ -38,8 +38,9 @@ pub fn run(args: InspectArgs) -> Result<()> {
     } else {
         match ext.as_deref() {
             Some("vol") => inspect_vol(&args),
+            Some("hyb") => super::inspect_model::run(p, args.json),
             _ if !p.exists() => bail!("{}: no such file or directory", p.display()),
-            _ => bail!("{}: cannot inspect this (expected a fabric directory or a .vol file)", p.display()),
+            _ => bail!("{}: cannot inspect this (expected a fabric directory, a .vol file or a .hyb model)", p.display()),
         }
     }
 }
