@@ -4,7 +4,10 @@
 // Linked for its glslang/SPIRV-Tools link lines (see runtime/shaderc-link).
 use shaderc_link as _;
 
+pub mod brdf;
+pub mod cpu;
 pub mod gpu;
+pub mod hybrid;
 pub mod image;
 pub mod metrics;
 pub mod vk;

@@ -53,6 +53,17 @@ pub fn mean_relative_difference(test: &Image, reference: &Image) -> Result<f64, 
     Ok(s / (3 * test.pixels.len().max(1)) as f64)
 }
 
+/// (mean(A) − mean(B)) / mean(B): the signed relative difference of the image means
+/// over all pixels and channels (B is the reference; 0 when both means are 0).
+pub fn relative_mean_difference(test: &Image, reference: &Image) -> Result<f64, MetricError> {
+    check(test, reference)?;
+    let (a, b) = (test.mean(), reference.mean());
+    if a == b {
+        return Ok(0.0);
+    }
+    Ok((a - b) / b.abs().max(1e-30))
+}
+
 /// FLIP statistics of a test image against a reference.
 #[derive(Clone, Debug)]
 pub struct Flip {
@@ -107,6 +118,7 @@ mod tests {
         let b = Image::from_fn(4, 4, |_, _| Vec3::splat(1.0));
         let a = Image::from_fn(4, 4, |_, _| Vec3::splat(1.1));
         assert!((relative_rmse(&a, &b).unwrap() - 0.1).abs() < 1e-6);
+        assert!((relative_mean_difference(&a, &b).unwrap() - 0.1).abs() < 1e-6);
         let big = Image::from_fn(4, 4, |x, _| if x == 0 { Vec3::ONE } else { Vec3::ZERO });
         assert!(flip(&big, &b, 1.0).unwrap().mean > 0.1);
         assert!(matches!(relative_rmse(&Image::new(3, 4), &b), Err(MetricError::SizeMismatch(..))));

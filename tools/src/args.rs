@@ -170,6 +170,36 @@ impl LightArgs {
     }
 }
 
+/// Material flags that override `material.toml` wherever a fabric volume is read.
+#[derive(Args, Clone, Debug, Default)]
+pub struct MaterialArgs {
+    /// σ_t = density_scale·ρ·σ(ω), per world unit (overrides material.toml).
+    #[arg(long)]
+    pub density_scale: Option<f32>,
+    /// SGGX fiber roughness σ in (0, 1] (overrides material.toml).
+    #[arg(long)]
+    pub roughness: Option<f32>,
+}
+
+impl MaterialArgs {
+    /// The overrides, checked (a bad flag fails before any file is read).
+    pub fn overrides(&self) -> Result<fabric_baker::volume::MaterialOverrides> {
+        let o = fabric_baker::volume::MaterialOverrides { density_scale: self.density_scale, roughness: self.roughness };
+        fabric_baker::volume::material::check_overrides(&o)?;
+        Ok(o)
+    }
+}
+
+/// Parses "XxYxZ" voxel counts.
+pub fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let v: Vec<usize> = s.split(['x', 'X']).map(|p| p.trim().parse::<usize>().map_err(|e| format!("'{p}' in '{s}': {e}"))).collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        [x, y, z] if *x > 0 && *y > 0 && *z > 0 => Ok([*x, *y, *z]),
+        [_, _, _] => Err(format!("'{s}': every axis needs at least one voxel")),
+        _ => Err(format!("expected XxYxZ (e.g. 256x256x48), got '{s}'")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,6 +15,15 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Generate a procedural fabric volume (woven or felt) as a fabric directory.
+    #[command(name = "gen")]
+    Gen(cmd::generate::GenArgs),
+    /// Show what a fabric directory or a .vol file holds.
+    Inspect(cmd::inspect::InspectArgs),
+    /// Path-trace the input fabric volume (the reference renderer) and print paths/s.
+    Reference(cmd::reference::ReferenceArgs),
+    /// Compare image A with reference B: relative RMSE, mean differences, FLIP.
+    Diff(cmd::diff::DiffArgs),
     /// List the Vulkan devices and which one would be chosen.
     Devices(cmd::devices::DevicesArgs),
     /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
@@ -28,6 +37,10 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Gen(a) => cmd::generate::run(a),
+        Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Reference(a) => cmd::reference::run(a),
+        Command::Diff(a) => cmd::diff::run(a),
         Command::Devices(a) => cmd::devices::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),

@@ -114,3 +114,31 @@ fn view_without_a_display_is_a_clear_error() {
     assert!(!o.status.success() && !stderr.contains("panicked"), "{stderr}");
     assert!(stderr.contains("DISPLAY"), "{stderr}");
 }
+
+#[test]
+fn hybrid_models_render_on_the_cpu_and_inspect() {
+    let model = tmp("synthetic.hyb");
+    fabric_runtime::hybrid::format::write_file(&fabric_runtime::hybrid::examples::synthetic_model(64, 7), &model).unwrap();
+    let out = tmp("synthetic.png");
+    let o = fabric().arg("render").arg(&model).args(["--view-angles", "30,-90", "--light-angles", "40,-60", "--size", "96x64", "--out"]).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("CPU renderer"), "{stdout}");
+    let img = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
+    assert!(img.mean() > 1e-4, "the lit tile should be visible");
+    let o = fabric().arg("inspect").arg(&model).arg("--json").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("inspect --json prints JSON");
+    assert!(v.is_object());
+    // A corrupt model is a clear error.
+    let mut bytes = std::fs::read(&model).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 0x5a;
+    let bad = tmp("corrupt.hyb");
+    std::fs::write(&bad, &bytes).unwrap();
+    for args in [vec!["inspect".to_string()], vec!["render".to_string()]] {
+        let o = fabric().args(&args).arg(&bad).args(if args[0] == "render" { vec!["--out", "/tmp/never.png"] } else { vec![] }).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && !stderr.contains("panicked") && stderr.contains("corrupt.hyb"), "{args:?}: {stderr}");
+    }
+}

@@ -16,9 +16,6 @@
 //!
 //! The pipeline is [`extract_geometry`]; each stage lives in its own file.
 
-// `!(x > y)` is deliberate throughout: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod autocorrelation;
 pub mod blur;
 pub mod cross_section;

@@ -26,7 +26,7 @@ pub const ORIENTATION_FILE: &str = "orientation.vol";
 pub const MATERIAL_FILE: &str = "material.toml";
 
 /// Voxels decoded per streamed chunk (whole slabs, at least one).
-const CHUNK_VOXELS: usize = 1 << 22;
+const CHUNK_VOXELS: usize = 1 << 20;
 /// Voxels validated per parallel task (fixed, so results do not depend on threads).
 const BLOCK_VOXELS: usize = 1 << 14;
 

@@ -81,7 +81,7 @@ fn unorm16_to_f32(v: u16) -> f32 {
 /// different codes; callers treat the decoded direction as an axis.
 pub fn octahedral_encode(w: Vec3) -> [u16; 2] {
     let l1 = w.x.abs() + w.y.abs() + w.z.abs();
-    if !(l1 > 0.0) || !l1.is_finite() {
+    if l1.is_nan() || l1 <= 0.0 || !l1.is_finite() {
         return [unorm16(0.5), unorm16(0.5)]; // +Z: a valid unit vector, never NaN
     }
     let p = w / l1;
@@ -249,7 +249,7 @@ mod tests {
     fn indexing_is_x_fastest_and_wraps() {
         let mut v = FabricVolume::new([4, 3, 2], Aabb::new(Vec3::ZERO, Vec3::new(4.0, 3.0, 2.0)), MaterialParams::default());
         v.set(1, 2, 1, Voxel::pack(0.5, Vec3::ONE, Vec3::X));
-        assert_eq!(v.index(1, 2, 1), 1 + 4 * (2 + 3 * 1));
+        assert_eq!(v.index(1, 2, 1), 1 + 4 * (2 + 3));
         assert_eq!(v.voxel_wrapped(-3, 5, 1).density(), 0.5);
         assert!(v.cell_center(0, 0, 0).abs_diff_eq(Vec3::splat(0.5), 1e-6));
         assert!((v.filled_fraction() - 1.0 / 24.0).abs() < 1e-12);

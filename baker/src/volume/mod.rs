@@ -5,6 +5,7 @@ pub mod error;
 pub mod fabric_dir;
 pub mod grid;
 pub mod material;
+pub mod stats;
 pub mod vol;
 
 pub use error::VolumeError;

@@ -267,9 +267,12 @@ pub fn decode(encoding: Encoding, channels: usize, raw: &[u8], out: &mut [f32]) 
     }
 }
 
-/// Encodes values (channels interleaved) and appends the bytes to `out`. On a value the
-/// encoding cannot hold, returns (index of the value or voxel, value text, reason).
-pub fn encode(encoding: Encoding, channels: usize, values: &[f32], out: &mut Vec<u8>) -> Result<(), (usize, String, &'static str)> {
+/// A value an encoding cannot hold: (index of the value, or of the voxel for quantized
+/// directions; the value as text; why).
+pub type Unencodable = (usize, String, &'static str);
+
+/// Encodes values (channels interleaved) and appends the bytes to `out`.
+pub fn encode(encoding: Encoding, channels: usize, values: &[f32], out: &mut Vec<u8>) -> Result<(), Unencodable> {
     match encoding {
         Encoding::Float32 => {
             out.reserve(values.len() * 4);
@@ -413,7 +416,6 @@ pub struct VolWriter {
     header: VolHeader,
     file: BufWriter<File>,
     written: usize,
-    buf: Vec<u8>,
 }
 
 impl VolWriter {
@@ -426,7 +428,7 @@ impl VolWriter {
         let file = File::create(path).map_err(|e| VolumeError::io(path, e))?;
         let mut file = BufWriter::with_capacity(1 << 20, file);
         file.write_all(&header.to_bytes()).map_err(|e| VolumeError::io(path, e))?;
-        Ok(VolWriter { path: path.to_path_buf(), header, file, written: 0, buf: Vec::new() })
+        Ok(VolWriter { path: path.to_path_buf(), header, file, written: 0 })
     }
 
     /// Appends values (channels interleaved, whole voxels, in file order).
@@ -442,13 +444,30 @@ impl VolWriter {
                 channels: c,
             });
         }
-        self.buf.clear();
-        if let Err((i, value, why)) = encode(self.header.encoding, c, values, &mut self.buf) {
-            let voxel = self.written + if self.header.encoding == Encoding::QuantizedDirections { i } else { i / c };
-            let [x, y, z] = unflatten(voxel, self.header.dims);
-            return Err(VolumeError::Unencodable { path: self.path.clone(), encoding: self.header.encoding.name(), value: format!("{value} at voxel ({x}, {y}, {z})"), why });
+        // Encode in parallel fixed-size pieces (quantizing directions costs trig per voxel),
+        // then write them in order; the first unencodable value in file order is reported.
+        const PIECE: usize = 1 << 16;
+        let enc = self.header.encoding;
+        let pieces: Vec<Result<Vec<u8>, Unencodable>> = values
+            .par_chunks(PIECE * c)
+            .enumerate()
+            .map(|(k, chunk)| {
+                let mut out = Vec::new();
+                encode(enc, c, chunk, &mut out).map(|_| out).map_err(|(i, v, why)| {
+                    let voxel = k * PIECE + if enc == Encoding::QuantizedDirections { i } else { i / c };
+                    (voxel, v, why)
+                })
+            })
+            .collect();
+        for piece in pieces {
+            match piece {
+                Ok(bytes) => self.file.write_all(&bytes).map_err(|e| VolumeError::io(&self.path, e))?,
+                Err((voxel, value, why)) => {
+                    let [x, y, z] = unflatten(self.written + voxel, self.header.dims);
+                    return Err(VolumeError::Unencodable { path: self.path.clone(), encoding: enc.name(), value: format!("{value} at voxel ({x}, {y}, {z})"), why });
+                }
+            }
         }
-        self.file.write_all(&self.buf).map_err(|e| VolumeError::io(&self.path, e))?;
         self.written += values.len() / c;
         Ok(())
     }

@@ -8,6 +8,15 @@ use ash::vk;
 use super::target::OffscreenTarget;
 use crate::vk::{BindingKind, DescriptorSet, DescriptorSetLayout, Device, GraphicsDesc, Pipeline, PipelineLayout, Recorder, Resource, Sampler, ShaderModule, Specialization, VkResult};
 
+/// An image the tonemap pass draws into (a swapchain image), in UNDEFINED layout.
+#[derive(Clone, Copy, Debug)]
+pub struct DisplayImage {
+    pub image: vk::Image,
+    pub view: vk::ImageView,
+    pub width: u32,
+    pub height: u32,
+}
+
 pub struct TonemapPass {
     pipeline: Pipeline,
     set: DescriptorSet,
@@ -44,7 +53,8 @@ impl TonemapPass {
 
     /// Records: source color (COLOR_ATTACHMENT) → shader-readable; display image
     /// (UNDEFINED) → drawn → PRESENT_SRC.
-    pub fn record(&self, rec: &Recorder<'_>, source: &OffscreenTarget, image: vk::Image, view: vk::ImageView, width: u32, height: u32, exposure: f32) {
+    pub fn record(&self, rec: &Recorder<'_>, source: &OffscreenTarget, display: &DisplayImage, exposure: f32) {
+        let DisplayImage { image, view, width, height } = *display;
         rec.image_barrier(&source.color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL);
         rec.raw_image_barrier(image, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
         rec.begin_rendering_view(view, width, height, [0.0, 0.0, 0.0, 1.0]);

@@ -67,10 +67,10 @@ pub fn stage_of(file: &str) -> Option<shaderc::ShaderKind> {
 /// Reads a shader source by name: `FABRIC_SHADER_DIR` first (live edits), else the
 /// copy embedded at build time.
 pub fn source(name: &str) -> Option<String> {
-    if let Some(dir) = std::env::var_os("FABRIC_SHADER_DIR") {
-        if let Ok(s) = std::fs::read_to_string(std::path::Path::new(&dir).join(name)) {
-            return Some(s);
-        }
+    if let Some(dir) = std::env::var_os("FABRIC_SHADER_DIR")
+        && let Ok(s) = std::fs::read_to_string(std::path::Path::new(&dir).join(name))
+    {
+        return Some(s);
     }
     embedded::source(name).map(str::to_string)
 }

@@ -1,6 +1,12 @@
 //! One module per `fabric` subcommand.
 
 pub mod devices;
+pub mod diff;
+pub mod generate;
 pub mod geometry;
+pub mod inspect;
+pub mod inspect_model;
+pub mod reference;
 pub mod render;
+pub mod render_cpu;
 pub mod view;

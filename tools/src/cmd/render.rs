@@ -1,5 +1,6 @@
-//! `fabric render`: draws a base mesh (and, once baked, a hybrid model) on the GPU,
-//! writes the image and prints the device and the GPU frame time.
+//! `fabric render`: draws a base mesh on the GPU (printing the device and the GPU
+//! frame time), or a hybrid model (`MODEL.hyb`) with the CPU renderer of hybrid models,
+//! and writes the image.
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -8,10 +9,28 @@ use fabric_runtime::scene::Mesh;
 use fabric_runtime::vk::{Device, DeviceOptions};
 use glam::Vec3;
 
+use super::render_cpu::CpuRenderFlags;
 use crate::args::{CameraArgs, LightArgs, OutputArgs, parse_rgb};
+
+/// Which renderer draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// The GPU for meshes; the CPU renderer for hybrid models (their GPU renderer is
+    /// not built yet).
+    Auto,
+    /// The Vulkan renderer.
+    Gpu,
+    /// The CPU renderer of hybrid models (rayon), the specification of the shading.
+    Cpu,
+}
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
+    /// A hybrid model (.hyb) to render; without it a base mesh is drawn.
+    pub model: Option<std::path::PathBuf>,
+    /// Renderer.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub backend: Backend,
     /// Base mesh: plane, sphere, cylinder, or a path to an .obj file.
     #[arg(long, default_value = "sphere")]
     pub mesh: String,
@@ -31,10 +50,24 @@ pub struct RenderArgs {
     pub light: LightArgs,
     #[command(flatten)]
     pub output: OutputArgs,
+    #[command(flatten)]
+    pub cpu: CpuRenderFlags,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.output.validate()?;
+    if let Some(model) = &args.model {
+        return match args.backend {
+            Backend::Auto | Backend::Cpu => {
+                println!("backend: CPU renderer of hybrid models");
+                super::render_cpu::run(model, &args.camera, &args.light, &args.output, &args.cpu)
+            }
+            Backend::Gpu => anyhow::bail!("{}: the GPU renderer of hybrid models is not built yet; use --backend cpu", model.display()),
+        };
+    }
+    if args.backend == Backend::Cpu {
+        anyhow::bail!("--backend cpu renders hybrid models (give MODEL.hyb); meshes are drawn on the GPU");
+    }
     let mesh = Mesh::by_name(&args.mesh)?;
     let camera = args.camera.camera(mesh.bounds())?;
     let light = args.light.light()?;

@@ -10,6 +10,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
+use fabric_runtime::gpu::tonemap::DisplayImage;
 use fabric_runtime::gpu::{GpuMesh, MeshFrame, MeshPass, OffscreenTarget, TonemapPass};
 use fabric_runtime::scene::{Camera, Light, Mesh};
 use fabric_runtime::vk::swapchain::{required_device_extensions, required_instance_extensions};
@@ -191,7 +192,7 @@ impl Viewer {
             rec.timestamp(&self.timestamps, 0);
             self.pass.record(rec, &self.target, &self.gpu_mesh, &self.frame);
             rec.timestamp(&self.timestamps, 1);
-            self.tonemap.record(rec, &self.target, image, view, w, h, self.exposure);
+            self.tonemap.record(rec, &self.target, &DisplayImage { image, view, width: w, height: h }, self.exposure);
         })?;
         if !presented {
             self.resized = true;

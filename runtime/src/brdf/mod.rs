@@ -1,0 +1,374 @@
+//! The cloth BRDF of the hybrid model (paper Eqs. 1–3, read as ../shared/DESIGN.md §5):
+//! the Rust twin of `shaders/brdf.glsl`.
+//!
+//! The two files have the same functions, with the same names, in the same order, and
+//! the same arithmetic, so that a port of one is a port of the other; the twin test runs
+//! the GLSL on lavapipe against this file and `shaders/brdf_test_vectors.json` pins
+//! both for engine teams. Change one, change the other.
+//!
+//! # Frame and angles
+//! A lobe lives in a shading frame (n, t, b = n × t): n the normal, t the fiber tangent
+//! (an axis: t ≡ −t gives the same BRDF value only up to θ ↦ −θ, which the lobes are
+//! even in), both in the same space as the directions (tile space: x, y along the tile,
+//! z up, out of the cloth). For a unit direction ω:
+//! - θ ∈ [−π/2, π/2] is the angle from ω to the normal plane: sin θ = ω·t;
+//! - φ ∈ (−π, π] is the signed angle of ω's projection in the normal plane, from n:
+//!   φ = atan2(ω·b, ω·n). Along t the projection vanishes; we define φ = 0 there.
+//!
+//! Mirror reflection about the normal plane has θ_o = −θ_i, so the lobes peak at
+//! θ_i + θ_o = 0; they fall off with φ_i + φ_o.
+//!
+//! # The BRDF (DESIGN.md §5, our bounded reading of Eqs. 1–3)
+//! ```text
+//! f_r = k_d + F(η, cos θ_d) · max(cos φ_i, 0)^a · Σ_j k_j · S_j(θ_i + θ_o, φ_i + φ_o)
+//! G(x; β) = exp(−x² / (2β²)) / (√(2π) β)          β clamped to [BETA_MIN, BETA_MAX]
+//! P(x; γ) = exp(−x² / (2γ²)),  P ≡ 1 for γ ≤ 0    γ > 0 clamped to [GAMMA_MIN, GAMMA_MAX]
+//! S_j = G(θ_i+θ_o; β_j) · P(φ_i+φ_o; γ_j)          BrdfReading::Bounded (default)
+//! S_j = G(θ_i+θ_o; max(β_j · P(φ_i+φ_o; γ_j), BETA_MIN))   BrdfReading::Width
+//! ```
+//! - Eq. 2 printed has no β_j and a width that shrinks without bound; the bounded
+//!   reading keeps the intent (a Gaussian in θ_i + θ_o whose strength falls off with
+//!   φ_i + φ_o). The "width" reading is the printed one with β_j put back and a floor.
+//!   Both are here and only here; a model file records which one it was fitted with.
+//! - F is the unpolarized dielectric Fresnel reflectance with relative index η, fed with
+//!   cos θ_d, θ_d = (θ_o − θ_i)/2 as in fiber models ([`cloth_fresnel_cos`], the one
+//!   place where the choice is made). At the specular peak θ_o = −θ_i this equals the
+//!   printed F(η, θ_i).
+//! - max(cos φ_i, 0)^a is the shadowing term of Sadeghi et al.; 0⁰ = 1 (a = 0 switches
+//!   it off everywhere, including at cos φ_i = 0).
+//! - k_d and k_j are linear RGB; k_d carries no 1/π. G is normalized over x ∈ ℝ.
+//!
+//! # Units and ranges
+//! Angles in radians. Parameters are clamped into their ranges before use, so any
+//! finite input gives a finite, non-negative result: k_d, k_j ∈ [0, K_MAX];
+//! η ∈ [1, ETA_MAX]; a ∈ [0, A_MAX]; β ∈ [BETA_MIN, BETA_MAX]; γ ≤ 0 means "off"
+//! (γ = ∞), else γ ∈ [GAMMA_MIN, GAMMA_MAX]. Degenerate frames (zero vectors, n ∥ t)
+//! are completed deterministically ([`cloth_frame`]). In Rust a NaN parameter is also
+//! absorbed by the clamps (`f32::max` drops NaN); GLSL makes no such promise, so GPU
+//! inputs must be finite (the model reader guarantees it).
+//!
+//! # What a renderer outputs
+//! Radiance toward ω_o under a light of irradiance E (perpendicular to the beam) from
+//! ω_i is `E · f_r · max(n·ω_i, 0)` (DESIGN.md §5, "fit radiance, not ratios");
+//! [`cloth_lobe`] gives one lobe in its own frame for texels whose lobes have
+//! different frames (coarse levels).
+
+// `x.max(lo).min(hi)` rather than `clamp`: it absorbs NaN (f32::max drops it) and reads
+// as the GLSL `min(max(x, lo), hi)`; `!(x > 0.0)` is the NaN-aware test, as in the GLSL.
+#![allow(clippy::manual_clamp, clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod twin;
+
+use glam::Vec3;
+
+/// Most lobes a BRDF may have (paper §5.3.5).
+pub const MAX_LOBES: usize = 8;
+/// Narrowest lobe width β (radians); also the floor of the width reading.
+pub const BETA_MIN: f32 = 1e-3;
+/// Widest lobe width β (radians); wider is flat anyway.
+pub const BETA_MAX: f32 = 1e4;
+/// Narrowest φ falloff γ (radians) when it is on.
+pub const GAMMA_MIN: f32 = 1e-3;
+/// Widest φ falloff γ (radians).
+pub const GAMMA_MAX: f32 = 1e4;
+/// Largest k_d or k_j (the largest finite IEEE half, what the file can hold).
+pub const K_MAX: f32 = 65504.0;
+/// Largest index of refraction η.
+pub const ETA_MAX: f32 = 4.0;
+/// Largest shadowing exponent a.
+pub const A_MAX: f32 = 1e4;
+/// Below this squared length a vector counts as zero.
+const EPS_LEN2: f32 = 1e-20;
+/// t is taken as parallel to n when its component perpendicular to n is shorter than
+/// 1e-4 (squared: 1e-8) of its length.
+const EPS_PERP2: f32 = 1e-8;
+/// Below this squared length the projection of ω on the normal plane is zero (ω ∥ t).
+const EPS_PROJ2: f32 = 1e-12;
+/// 1/√(2π).
+const INV_SQRT_2PI: f32 = 0.398_942_3;
+
+/// Which reading of the printed Eqs. 2–3 a model uses (DESIGN.md §5). The value is what
+/// the file and the GLSL (`CLOTH_READING_*`) store.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BrdfReading {
+    /// S = G(θ_i+θ_o; β) · P(φ_i+φ_o; γ): bounded (the default).
+    #[default]
+    Bounded = 0,
+    /// S = G(θ_i+θ_o; max(β·P(φ_i+φ_o; γ), BETA_MIN)): the printed width, with β and a floor.
+    Width = 1,
+}
+
+impl BrdfReading {
+    pub fn from_u32(v: u32) -> Option<BrdfReading> {
+        match v {
+            0 => Some(BrdfReading::Bounded),
+            1 => Some(BrdfReading::Width),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            BrdfReading::Bounded => "bounded",
+            BrdfReading::Width => "width",
+        }
+    }
+}
+
+/// One specular lobe: RGB strength k, θ width β (radians), φ falloff γ (radians;
+/// γ ≤ 0 switches the falloff off, i.e. γ = ∞).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClothLobe {
+    pub k: Vec3,
+    pub beta: f32,
+    pub gamma: f32,
+}
+
+impl ClothLobe {
+    /// The γ that switches the φ falloff off (γ = ∞).
+    pub const GAMMA_OFF: f32 = 0.0;
+}
+
+/// The parameters of Eq. 1 for lobes that share one frame: diffuse k_d (RGB, no 1/π),
+/// Fresnel index η, shadowing exponent a and up to [`MAX_LOBES`] lobes (the first
+/// `lobe_count` are used).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClothParams {
+    pub kd: Vec3,
+    pub eta: f32,
+    pub a: f32,
+    pub lobe_count: u32,
+    pub lobes: [ClothLobe; MAX_LOBES],
+}
+
+impl ClothParams {
+    /// Parameters with the given lobes (at most [`MAX_LOBES`]; extra ones are dropped).
+    pub fn new(kd: Vec3, eta: f32, a: f32, lobes: &[ClothLobe]) -> ClothParams {
+        let mut p = ClothParams { kd, eta, a, lobe_count: lobes.len().min(MAX_LOBES) as u32, lobes: [ClothLobe::default(); MAX_LOBES] };
+        p.lobes[..p.lobe_count as usize].copy_from_slice(&lobes[..p.lobe_count as usize]);
+        p
+    }
+
+    /// The lobes in use.
+    pub fn lobes(&self) -> &[ClothLobe] {
+        &self.lobes[..(self.lobe_count as usize).min(MAX_LOBES)]
+    }
+}
+
+/// An orthonormal shading frame: normal n, tangent t, b = n × t.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClothFrame {
+    pub n: Vec3,
+    pub t: Vec3,
+    pub b: Vec3,
+}
+
+/// The angles of one direction in a frame (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClothAngles {
+    pub sin_theta: f32,
+    pub cos_theta: f32,
+    pub theta: f32,
+    pub phi: f32,
+    pub cos_phi: f32,
+}
+
+/// A unit tangent perpendicular to unit `n` (Duff et al. 2017, "Building an orthonormal
+/// basis, revisited"): the deterministic completion of a degenerate frame, and the
+/// reference direction from which packed tangents measure their angle.
+#[inline]
+pub fn cloth_reference_tangent(n: Vec3) -> Vec3 {
+    let s = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    Vec3::new(1.0 + s * n.x * n.x * a, s * b, -s * n.x)
+}
+
+/// The orthonormal frame of normal `n` and tangent `t` (neither need be unit). t is
+/// made perpendicular to n (Gram–Schmidt, twice). Fallbacks, in order: n ≈ 0 → n = +Z;
+/// t ≈ 0 or t ∥ n → t = [`cloth_reference_tangent`]`(n)`.
+#[inline]
+pub fn cloth_frame(n: Vec3, t: Vec3) -> ClothFrame {
+    let n_len2 = n.dot(n);
+    let n = if n_len2 > EPS_LEN2 { n * (1.0 / n_len2.sqrt()) } else { Vec3::Z };
+    let t_len2 = t.dot(t);
+    let t = if t_len2 > EPS_LEN2 { t * (1.0 / t_len2.sqrt()) } else { Vec3::ZERO };
+    let t_perp = t - n * t.dot(n);
+    let perp2 = t_perp.dot(t_perp);
+    let t = if perp2 > EPS_PERP2 {
+        // A second Gram–Schmidt pass: the first leaves n·t ~ ε/sin∠(n, t) when t is
+        // nearly parallel to n.
+        let t1 = t_perp * (1.0 / perp2.sqrt());
+        let t2 = t1 - n * t1.dot(n);
+        t2 * (1.0 / t2.dot(t2).sqrt())
+    } else {
+        cloth_reference_tangent(n)
+    };
+    ClothFrame { n, t, b: n.cross(t) }
+}
+
+/// The frame of a flyaway fiber seen from `wo` (DESIGN.md §5, "the implicit surface
+/// derived from the volume"): t = the fiber axis `fiber` (normalized), n = `wo` made
+/// perpendicular to t (the fiber seen side-on), b = n × t. Fallbacks: fiber ≈ 0 → +X;
+/// wo ∥ t → n = [`cloth_reference_tangent`]`(t)`.
+#[inline]
+pub fn cloth_fiber_frame(fiber: Vec3, wo: Vec3) -> ClothFrame {
+    let f_len2 = fiber.dot(fiber);
+    let t = if f_len2 > EPS_LEN2 { fiber * (1.0 / f_len2.sqrt()) } else { Vec3::X };
+    let n_raw = wo - t * wo.dot(t);
+    let n_len2 = n_raw.dot(n_raw);
+    let n = if n_len2 > EPS_PROJ2 { n_raw * (1.0 / n_len2.sqrt()) } else { cloth_reference_tangent(t) };
+    ClothFrame { n, t, b: n.cross(t) }
+}
+
+/// atan2(y, x) in (−π, π], computed the same way in both twins (Cephes' atanf on
+/// min/max of |x|, |y|, relative error ≈ 2e-7): GPUs' built-in inverse trigonometry is an
+/// approximation of their own (lavapipe's asin is off by up to 3.9e-4 rad, its atan by
+/// 3e-6), which narrow lobes (β ≈ 0.005) amplify a hundredfold. atan2(0, 0) = 0; the
+/// sign of a zero y is ignored (atan2(−0, −1) = π).
+#[inline]
+pub fn cloth_atan2(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (hi, lo) = (ax.max(ay), ax.min(ay));
+    let mut r = if hi > 0.0 { lo / hi } else { 0.0 };
+    // r ∈ [0, 1]; above tan(π/8) reduce with atan r = π/4 + atan((r − 1)/(r + 1)).
+    let mut base = 0.0;
+    if r > 0.414_213_57 {
+        base = std::f32::consts::FRAC_PI_4;
+        r = (r - 1.0) / (r + 1.0);
+    }
+    let z = r * r;
+    let mut a = base + ((((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_295e-1) * z * r + r);
+    if ay > ax {
+        a = std::f32::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = std::f32::consts::PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
+/// θ and φ of direction `w` (unit) in frame `f`.
+#[inline]
+pub fn cloth_angles(f: &ClothFrame, w: Vec3) -> ClothAngles {
+    let sin_theta = w.dot(f.t).clamp(-1.0, 1.0);
+    let cos_theta = (1.0 - sin_theta * sin_theta).max(0.0).sqrt();
+    // θ = asin(sin θ), through the twins' own arctangent (see cloth_atan2).
+    let theta = cloth_atan2(sin_theta, cos_theta);
+    let x = w.dot(f.n);
+    let y = w.dot(f.b);
+    let r2 = x * x + y * y;
+    let (phi, cos_phi) = if r2 > EPS_PROJ2 { (cloth_atan2(y, x), x * (1.0 / r2.sqrt())) } else { (0.0, 1.0) };
+    ClothAngles { sin_theta, cos_theta, theta, phi, cos_phi }
+}
+
+/// Unpolarized dielectric Fresnel reflectance for relative index `eta` at incidence
+/// cosine `cos_i` (both clamped into range).
+#[inline]
+pub fn cloth_fresnel(eta: f32, cos_i: f32) -> f32 {
+    let eta = eta.max(1.0).min(ETA_MAX);
+    let c = cos_i.max(0.0).min(1.0);
+    let sin2_t = (1.0 - c * c) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let rs = (c - eta * cos_t) / (c + eta * cos_t).max(1e-30);
+    let rp = (eta * c - cos_t) / (eta * c + cos_t).max(1e-30);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// The cosine that feeds the Fresnel term: cos θ_d, θ_d = (θ_o − θ_i)/2. The one place
+/// where this choice is made. cos θ_d = √((1 + cos(θ_o − θ_i))/2) since |θ_d| ≤ π/2.
+#[inline]
+pub fn cloth_fresnel_cos(wi: &ClothAngles, wo: &ClothAngles) -> f32 {
+    let cos_diff = wo.cos_theta * wi.cos_theta + wo.sin_theta * wi.sin_theta;
+    (0.5 * (1.0 + cos_diff)).max(0.0).sqrt()
+}
+
+/// max(cos φ_i, 0)^a, with 0⁰ = 1.
+#[inline]
+pub fn cloth_shadowing(cos_phi_i: f32, a: f32) -> f32 {
+    let a = a.max(0.0).min(A_MAX);
+    if a <= 0.0 {
+        return 1.0;
+    }
+    if cos_phi_i <= 0.0 {
+        return 0.0;
+    }
+    cos_phi_i.min(1.0).powf(a)
+}
+
+/// G(x; β) = exp(−x²/(2β²)) / (√(2π) β), β clamped to [BETA_MIN, BETA_MAX].
+#[inline]
+pub fn cloth_gaussian(x: f32, beta: f32) -> f32 {
+    let beta = beta.max(BETA_MIN).min(BETA_MAX);
+    (-(x * x) / (2.0 * beta * beta)).exp() * (INV_SQRT_2PI / beta)
+}
+
+/// P(x; γ) = exp(−x²/(2γ²)); 1 for γ ≤ 0 (γ = ∞); γ clamped to [GAMMA_MIN, GAMMA_MAX].
+#[inline]
+pub fn cloth_phi_falloff(x: f32, gamma: f32) -> f32 {
+    if !(gamma > 0.0) {
+        return 1.0;
+    }
+    let gamma = gamma.max(GAMMA_MIN).min(GAMMA_MAX);
+    (-(x * x) / (2.0 * gamma * gamma)).exp()
+}
+
+/// The shape S_j of one lobe at θ_i + θ_o = `theta_sum`, φ_i + φ_o = `phi_sum`, under
+/// either reading (the only place where the readings differ).
+#[inline]
+pub fn cloth_lobe_shape(theta_sum: f32, phi_sum: f32, beta: f32, gamma: f32, reading: BrdfReading) -> f32 {
+    match reading {
+        BrdfReading::Bounded => cloth_gaussian(theta_sum, beta) * cloth_phi_falloff(phi_sum, gamma),
+        BrdfReading::Width => {
+            let beta = beta.max(BETA_MIN).min(BETA_MAX);
+            cloth_gaussian(theta_sum, (beta * cloth_phi_falloff(phi_sum, gamma)).max(BETA_MIN))
+        }
+    }
+}
+
+/// Σ_j k_j · S_j over the lobes in use (Eq. 2).
+#[inline]
+pub fn cloth_specular(p: &ClothParams, wi: &ClothAngles, wo: &ClothAngles, reading: BrdfReading) -> Vec3 {
+    let theta_sum = wi.theta + wo.theta;
+    let phi_sum = wi.phi + wo.phi;
+    let mut sum = Vec3::ZERO;
+    for lobe in p.lobes() {
+        let k = lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+        sum += k * cloth_lobe_shape(theta_sum, phi_sum, lobe.beta, lobe.gamma, reading);
+    }
+    sum
+}
+
+/// f_r(ω_i, ω_o) of Eq. 1 for lobes sharing frame `f`; `wi` points toward the light,
+/// `wo` toward the viewer, both unit. RGB, finite, ≥ 0.
+#[inline]
+pub fn cloth_brdf(p: &ClothParams, f: &ClothFrame, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+    let ai = cloth_angles(f, wi);
+    let ao = cloth_angles(f, wo);
+    let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    let fresnel = cloth_fresnel(p.eta, cloth_fresnel_cos(&ai, &ao));
+    kd + cloth_specular(p, &ai, &ao, reading) * (fresnel * cloth_shadowing(ai.cos_phi, p.a))
+}
+
+/// One lobe in its own frame `f`, with the Fresnel and shadowing factors of Eq. 1 but
+/// without k_d: F · max(cos φ_i, 0)^a · k · S. For texels whose lobes have their own
+/// frames (coarse levels); with a shared frame, Σ cloth_lobe + k_d = [`cloth_brdf`].
+#[inline]
+pub fn cloth_lobe(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+    let ai = cloth_angles(f, wi);
+    let ao = cloth_angles(f, wo);
+    let fresnel = cloth_fresnel(eta, cloth_fresnel_cos(&ai, &ao));
+    let k = lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    k * (cloth_lobe_shape(ai.theta + ao.theta, ai.phi + ao.phi, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(ai.cos_phi, a))
+}
+
+/// Outgoing radiance per unit irradiance for lobes sharing frame `f`:
+/// f_r · max(n·ω_i, 0) — what a renderer multiplies by E and what the fit matches.
+#[inline]
+pub fn cloth_response(p: &ClothParams, f: &ClothFrame, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+    cloth_brdf(p, f, wi, wo, reading) * f.n.dot(wi).max(0.0)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,246 @@
+use super::twin::*;
+use super::*;
+
+fn silk() -> ClothParams {
+    ClothParams::new(
+        Vec3::new(0.05, 0.03, 0.02),
+        1.46,
+        2.0,
+        &[ClothLobe { k: Vec3::new(0.8, 0.7, 0.6), beta: 0.08, gamma: 0.6 }, ClothLobe { k: Vec3::splat(0.3), beta: 0.3, gamma: ClothLobe::GAMMA_OFF }],
+    )
+}
+
+/// Direction at (θ, φ) in frame f.
+fn dir(f: &ClothFrame, theta: f32, phi: f32) -> Vec3 {
+    f.t * theta.sin() + theta.cos() * (f.n * phi.cos() + f.b * phi.sin())
+}
+
+#[test]
+fn angles_invert_the_direction_construction() {
+    let f = cloth_frame(Vec3::new(0.1, 0.2, 1.0), Vec3::new(1.0, 0.3, 0.0));
+    for &(theta, phi) in &[(0.3f32, 0.2f32), (-1.2, 2.9), (0.0, -3.0), (1.5, 0.0)] {
+        let a = cloth_angles(&f, dir(&f, theta, phi));
+        assert!((a.theta - theta).abs() < 1e-5 && (a.phi - phi).abs() < 1e-4, "{theta},{phi} -> {a:?}");
+        assert!((a.cos_phi - phi.cos()).abs() < 1e-5);
+    }
+    // Along t the projection vanishes: φ = 0 by definition.
+    let a = cloth_angles(&f, f.t);
+    assert_eq!((a.phi, a.cos_phi), (0.0, 1.0));
+    assert!((a.theta - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+}
+
+#[test]
+fn peak_value_matches_the_closed_form() {
+    // At the mirror configuration θ_o = −θ_i, φ_o = −φ_i: G = 1/(√(2π)β), P = 1 and
+    // cos θ_d = cos θ_i, so f_r = k_d + F(η, cos θ_i) cos(φ_i)^a Σ k_j /(√(2π)β_j).
+    let p = silk();
+    let f = cloth_frame(Vec3::Z, Vec3::X);
+    let (ti, pi) = (0.35f64, 0.25f64);
+    let wi = dir(&f, ti as f32, pi as f32);
+    let wo = dir(&f, -ti as f32, -pi as f32);
+    let eta = p.eta as f64;
+    let c = ti.cos();
+    let ct = (1.0 - (1.0 - c * c) / (eta * eta)).sqrt();
+    let rs = (c - eta * ct) / (c + eta * ct);
+    let rp = (eta * c - ct) / (eta * c + ct);
+    let fres = 0.5 * (rs * rs + rp * rp);
+    let shadow = pi.cos().powf(p.a as f64);
+    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+        let got = cloth_brdf(&p, &f, wi, wo, reading);
+        for ch in 0..3 {
+            let spec: f64 = p.lobes().iter().map(|l| l.k[ch] as f64 / ((2.0 * std::f64::consts::PI).sqrt() * l.beta as f64)).sum();
+            let want = p.kd[ch] as f64 + fres * shadow * spec;
+            // f32 evaluation of exp/asin near the peak: a few ulps of the ~10 result.
+            assert!((got[ch] as f64 - want).abs() < 1e-5 * want, "{reading:?} ch{ch}: {} vs {want}", got[ch]);
+        }
+    }
+}
+
+#[test]
+fn gaussian_is_normalized_and_falls_off() {
+    for beta in [0.01f32, 0.1, 0.7] {
+        // Midpoint rule over ±10β with 4000 steps: error far below 1e-4.
+        let n = 4000;
+        let h = 20.0 * beta as f64 / n as f64;
+        let s: f64 = (0..n).map(|i| cloth_gaussian((-10.0 * beta as f64 + (i as f64 + 0.5) * h) as f32, beta) as f64 * h).sum();
+        assert!((s - 1.0).abs() < 1e-4, "β={beta}: ∫G = {s}");
+    }
+    assert!((cloth_phi_falloff(0.4, 0.4) - (-0.5f32).exp()).abs() < 1e-7);
+    assert_eq!(cloth_phi_falloff(3.0, ClothLobe::GAMMA_OFF), 1.0);
+    // γ = ∞ is clamped to GAMMA_MAX: off to within 1e-7 for |x| ≤ 2π.
+    assert!(cloth_phi_falloff(3.0, f32::INFINITY) > 1.0 - 1e-7);
+}
+
+#[test]
+fn fresnel_limits() {
+    let eta = 1.5f32;
+    let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+    assert!((cloth_fresnel(eta, 1.0) - r0).abs() < 1e-7);
+    assert!((cloth_fresnel(eta, 0.0) - 1.0).abs() < 1e-6);
+    assert!(cloth_fresnel(1.0, 0.3) < 1e-12, "η = 1: no interface");
+    assert_eq!(cloth_fresnel(1.0, 0.0), 0.0);
+    // Monotone in the angle of incidence.
+    let mut last = 0.0;
+    for i in (0..=100).rev() {
+        let f = cloth_fresnel(eta, i as f32 / 100.0);
+        assert!(f >= last - 1e-7, "{i}: {f} < {last}");
+        last = f;
+    }
+}
+
+#[test]
+fn shadowing_zero_to_the_zero_is_one() {
+    assert_eq!(cloth_shadowing(0.0, 0.0), 1.0);
+    assert_eq!(cloth_shadowing(-0.5, 0.0), 1.0);
+    assert_eq!(cloth_shadowing(0.0, 2.0), 0.0);
+    assert_eq!(cloth_shadowing(-0.1, 2.0), 0.0);
+    assert!((cloth_shadowing(0.5, 2.0) - 0.25).abs() < 1e-7);
+    assert_eq!(cloth_shadowing(0.5, 1e30), 0.0);
+}
+
+#[test]
+fn readings_agree_where_the_falloff_is_one() {
+    // φ_i + φ_o = 0 or γ off: P = 1, so β̃ = β and both readings give the same lobe.
+    let f = cloth_frame(Vec3::Z, Vec3::Y);
+    let p = silk();
+    for &(ti, to, pi) in &[(0.2f32, 0.1f32, 0.4f32), (-0.5, 0.7, -1.0)] {
+        let (wi, wo) = (dir(&f, ti, pi), dir(&f, to, -pi));
+        let a = cloth_brdf(&p, &f, wi, wo, BrdfReading::Bounded);
+        let b = cloth_brdf(&p, &f, wi, wo, BrdfReading::Width);
+        assert!((a - b).abs().max_element() <= 1e-6 * a.max_element(), "{a} vs {b}");
+    }
+    // Away from it they differ: the width reading widens nothing, it narrows the lobe
+    // in θ (peak up) where P < 1; the bounded one scales it down.
+    let (wi, wo) = (dir(&f, 0.2, 0.6), dir(&f, -0.2, 0.6));
+    let p1 = ClothParams::new(Vec3::ZERO, 1.5, 0.0, &[ClothLobe { k: Vec3::ONE, beta: 0.1, gamma: 0.5 }]);
+    let a = cloth_brdf(&p1, &f, wi, wo, BrdfReading::Bounded);
+    let b = cloth_brdf(&p1, &f, wi, wo, BrdfReading::Width);
+    assert!(b.x > a.x * 2.0, "{a} vs {b}");
+}
+
+#[test]
+fn reciprocal_without_shadowing_and_even_in_the_tangent_sign() {
+    let mut rng = SplitMix64(7);
+    for _ in 0..2000 {
+        let (n, t) = (rng.unit_vector(), rng.unit_vector());
+        let (wi, wo) = (rng.unit_vector(), rng.unit_vector());
+        let mut p = silk();
+        let f = cloth_frame(n, t);
+        let g = cloth_frame(n, -t);
+        for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+            // t ≡ −t: tangents are axes.
+            let x = cloth_brdf(&p, &f, wi, wo, reading);
+            let y = cloth_brdf(&p, &g, wi, wo, reading);
+            assert!((x - y).abs().max_element() <= 1e-5 * x.max_element().max(1e-3), "{x} vs {y}");
+            // a = 0: every factor is symmetric in (ω_i, ω_o).
+            p.a = 0.0;
+            let x = cloth_brdf(&p, &f, wi, wo, reading);
+            let y = cloth_brdf(&p, &f, wo, wi, reading);
+            assert!((x - y).abs().max_element() <= 1e-5 * x.max_element().max(1e-3), "{x} vs {y}");
+        }
+    }
+}
+
+#[test]
+fn frames_are_orthonormal_even_when_degenerate() {
+    let mut rng = SplitMix64(11);
+    let mut cases = vec![(Vec3::ZERO, Vec3::ZERO), (Vec3::Z, Vec3::Z), (Vec3::Z, -Vec3::Z), (-Vec3::Z, Vec3::ZERO), (Vec3::new(0.0, 0.0, -0.0), Vec3::X)];
+    for _ in 0..1000 {
+        let n = rng.unit_vector() * rng.log_range(1e-12, 1e12);
+        let t = if rng.next_f32() < 0.2 { n * rng.range(-3.0, 3.0) + rng.unit_vector() * 1e-9 } else { rng.unit_vector() * rng.log_range(1e-12, 1e12) };
+        cases.push((n, t));
+    }
+    for (n, t) in cases {
+        let f = cloth_frame(n, t);
+        for v in [f.n, f.t, f.b] {
+            assert!(v.is_finite() && (v.length() - 1.0).abs() < 1e-5, "{n} {t} -> {f:?}");
+        }
+        assert!(f.n.dot(f.t).abs() < 1e-5 && f.n.dot(f.b).abs() < 1e-5 && f.t.dot(f.b).abs() < 1e-5, "{n} {t} -> {f:?}");
+    }
+    assert_eq!(cloth_frame(Vec3::ZERO, Vec3::X).n, Vec3::Z);
+    assert_eq!(cloth_frame(Vec3::Z, Vec3::Z).t, cloth_reference_tangent(Vec3::Z));
+}
+
+#[test]
+fn finite_and_non_negative_on_a_million_random_and_extreme_inputs() {
+    let inputs = generate_inputs(1_000_000, 0xb1d);
+    let mut max_seen = 0.0f32;
+    for (i, input) in inputs.iter().enumerate() {
+        let out = input.evaluate();
+        for v in out.brdf.iter().chain(&out.lobe0).chain(&out.fiber) {
+            assert!(v.is_finite() && *v >= 0.0, "input {i}: {input:?} -> {out:?}");
+            max_seen = max_seen.max(*v);
+        }
+    }
+    // Bounded by K_MAX·(1 + 8/(√(2π)·BETA_MIN)): no overflow possible.
+    assert!(max_seen < 3e8, "{max_seen}");
+}
+
+#[test]
+fn nan_parameters_are_absorbed_in_rust() {
+    let nan = f32::NAN;
+    let p = ClothParams::new(Vec3::splat(nan), nan, nan, &[ClothLobe { k: Vec3::splat(nan), beta: nan, gamma: nan }]);
+    let v = cloth_brdf(&p, &cloth_frame(Vec3::Z, Vec3::X), Vec3::Z, Vec3::Z, BrdfReading::Bounded);
+    assert!(v.is_finite() && v.min_element() >= 0.0, "{v}");
+    // A NaN normal fails the length test and falls back to +Z.
+    let f = cloth_frame(Vec3::splat(nan), Vec3::X);
+    assert_eq!((f.n, f.t), (Vec3::Z, Vec3::X));
+}
+
+#[test]
+fn brdf_test_vectors_are_current() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/brdf_test_vectors.json");
+    let fresh = test_vector_file();
+    if std::env::var_os("FABRIC_BLESS").is_some() {
+        std::fs::write(&path, fresh.to_json()).unwrap();
+    }
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e} (write it with FABRIC_BLESS=1)", path.display()));
+    let stored: TestVectorFile = serde_json::from_str(&text).unwrap();
+    assert_eq!(stored.vectors.len(), fresh.vectors.len());
+    for (i, (s, f)) in stored.vectors.iter().zip(&fresh.vectors).enumerate() {
+        // Inputs are stored exactly (shortest round-trip decimal); outputs to 1e-6
+        // relative, the slack a different libm's exp/asin/atan2 may need.
+        assert_eq!((s.n, s.t, s.wi, s.wo, s.kd, s.eta, s.a, &s.reading, &s.lobes), (f.n, f.t, f.wi, f.wo, f.kd, f.eta, f.a, &f.reading, &f.lobes), "row {i}");
+        for (x, y) in s.brdf.iter().chain(&s.lobe0).chain(&s.fiber).zip(f.brdf.iter().chain(&f.lobe0).chain(&f.fiber)) {
+            assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-6), "row {i}: stored {x}, now {y}");
+        }
+    }
+}
+
+#[test]
+fn fiber_frame_sees_the_fiber_side_on() {
+    let mut rng = SplitMix64(13);
+    for _ in 0..1000 {
+        let (fiber, wo) = (rng.unit_vector() * rng.range(0.1, 10.0), rng.unit_vector());
+        let f = cloth_fiber_frame(fiber, wo);
+        assert!(f.t.cross(fiber).length() < 1e-5 * fiber.length(), "t is the fiber axis");
+        assert!(f.n.dot(f.t).abs() < 1e-5 && (f.n.length() - 1.0).abs() < 1e-5);
+        // n is wo's component perpendicular to t: wo lies in the (n, t) plane, n·wo ≥ 0.
+        assert!(wo.dot(f.b).abs() < 1e-5 && wo.dot(f.n) >= 0.0);
+    }
+    let f = cloth_fiber_frame(Vec3::Z, Vec3::Z);
+    assert_eq!((f.t, f.n), (Vec3::Z, cloth_reference_tangent(Vec3::Z)));
+    assert_eq!(cloth_fiber_frame(Vec3::ZERO, Vec3::Z).t, Vec3::X);
+}
+
+#[test]
+fn twin_arctangent_is_accurate_everywhere() {
+    let mut worst = 0.0f64;
+    let n = 20_000;
+    for k in 0..=n {
+        let a = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+        for r in [1e-20f64, 1e-3, 1.0, 7.5, 1e20] {
+            let (y, x) = ((a.sin() * r) as f32, (a.cos() * r) as f32);
+            let want = (y as f64).atan2(x as f64);
+            let got = cloth_atan2(y, x) as f64;
+            // Compare on the circle (π and −π are one angle).
+            let d = (got - want).abs().min(2.0 * std::f64::consts::PI - (got - want).abs());
+            worst = worst.max(d / want.abs().max(1e-3));
+        }
+    }
+    assert!(worst < 5e-7, "worst relative error {worst:.2e}");
+    assert_eq!(cloth_atan2(0.0, 0.0), 0.0);
+    assert_eq!(cloth_atan2(0.0, 1.0), 0.0);
+    assert!((cloth_atan2(1.0, 0.0) - std::f32::consts::FRAC_PI_2).abs() < 1e-7);
+    assert!((cloth_atan2(0.0, -1.0) - std::f32::consts::PI).abs() < 1e-7);
+}

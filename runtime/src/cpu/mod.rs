@@ -1,0 +1,148 @@
+//! The CPU renderer of hybrid models: the specification of the shading, the twin of the
+//! GPU renderer, and the baker's validation renderer (DESIGN.md §7).
+//!
+//! Its decomposition is the one the GLSL has: [`heightfield`] (heightfield.glsl: the
+//! POM march with a min-depth quadtree and exact refinement), [`flyaways`]
+//! (flyaways.glsl: the linked-list march with alpha compositing), [`shading`]
+//! (shading.glsl: lobes under lights, fiber frames, shadows), [`crate::brdf`]
+//! (brdf.glsl), and [`render`] (the per-pixel program and the image loop).
+//!
+//! Geometry (DESIGN.md §8, runtime/HYBRID_FORMAT.md §5): by default the tile sits on
+//! the source volume's top plane covering exactly its x–y box, depths going down into
+//! it; rays enter through the top plane only (the GPU draws the top face). With
+//! `periodic` the tile repeats forever in x and y, matching `fabric reference
+//! --periodic`.
+//!
+//! ```no_run
+//! # use fabric_runtime::{cpu, hybrid, scene::{Camera, Light}};
+//! # fn f(model: &hybrid::HybridModel, camera: &Camera, lights: &[Light]) -> Result<(), cpu::CpuRenderError> {
+//! let image = cpu::render(model, camera, lights, &cpu::CpuRenderOptions { periodic: true, ..Default::default() })?;
+//! # Ok(()) }
+//! ```
+
+pub mod flyaways;
+pub mod heightfield;
+pub mod render;
+pub mod shading;
+
+use glam::Vec3;
+
+pub use render::{PixelTrace, Scene, render, render_with_progress, render_with_stats};
+
+use crate::hybrid::ModelError;
+use crate::scene::{CameraError, LightError};
+
+/// Which level of the mip chain shades a pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LevelChoice {
+    /// From the pixel's footprint on the top plane: level ⌊log2 ρ + bias + ½⌋, ρ the
+    /// footprint in level-0 texels (Vulkan's nearest-mip rule), clamped to the chain.
+    Auto { bias: f32 },
+    /// This level everywhere.
+    Fixed(u32),
+}
+
+/// Height-field shadowing of the lights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShadowMode {
+    /// As the model was fitted (its metadata says whether the fit assumed shadowing).
+    FromModel,
+    On,
+    Off,
+}
+
+/// How to render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CpuRenderOptions {
+    pub level: LevelChoice,
+    /// Repeat the tile forever in x and y.
+    pub periodic: bool,
+    pub shadows: ShadowMode,
+    /// Budget of height-field traversal steps per ray (camera and shadow rays).
+    pub max_steps: u32,
+    /// Budget of flyaway columns per camera ray.
+    pub max_flyaway_columns: u32,
+    /// s×s camera rays per pixel on a regular grid (1..=16).
+    pub supersampling: u32,
+    /// Radiance where rays miss the tile.
+    pub background: Vec3,
+}
+
+impl Default for CpuRenderOptions {
+    fn default() -> Self {
+        CpuRenderOptions {
+            level: LevelChoice::Auto { bias: 0.0 },
+            periodic: false,
+            shadows: ShadowMode::FromModel,
+            max_steps: 4096,
+            max_flyaway_columns: 16384,
+            supersampling: 1,
+            background: Vec3::ZERO,
+        }
+    }
+}
+
+/// What a render did, for the command line and the benchmarks.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RenderStats {
+    pub pixels: u64,
+    /// Pixels whose camera ray entered the tile.
+    pub tile_pixels: u64,
+    /// Pixels whose camera ray hit the height field.
+    pub surface_pixels: u64,
+    /// Pixels where flyaways covered part of the view.
+    pub flyaway_pixels: u64,
+    /// Pixels per level.
+    pub level_pixels: Vec<u64>,
+    /// Pixels whose camera march ran out of steps (shown as background past that point).
+    pub step_limited_pixels: u64,
+    /// Shadow rays that ran out of steps (counted as blocked).
+    pub step_limited_shadow_rays: u64,
+    /// Height-field traversal steps of all camera rays.
+    pub camera_steps: u64,
+}
+
+impl RenderStats {
+    fn add(&mut self, t: &PixelTrace) {
+        self.pixels += 1;
+        if let Some(level) = t.level {
+            self.tile_pixels += 1;
+            self.level_pixels[level] += 1;
+        }
+        self.surface_pixels += t.surface_t.is_some() as u64;
+        self.flyaway_pixels += (t.flyaway_opacity > 0.0) as u64;
+        self.step_limited_pixels += t.step_limited as u64;
+        self.step_limited_shadow_rays += t.shadow_step_limited as u64;
+        self.camera_steps += t.steps as u64;
+    }
+
+    fn merge(&mut self, o: &RenderStats) {
+        self.pixels += o.pixels;
+        self.tile_pixels += o.tile_pixels;
+        self.surface_pixels += o.surface_pixels;
+        self.flyaway_pixels += o.flyaway_pixels;
+        for (a, b) in self.level_pixels.iter_mut().zip(&o.level_pixels) {
+            *a += b;
+        }
+        self.step_limited_pixels += o.step_limited_pixels;
+        self.step_limited_shadow_rays += o.step_limited_shadow_rays;
+        self.camera_steps += o.camera_steps;
+    }
+}
+
+/// Why a render cannot run.
+#[derive(Debug, thiserror::Error)]
+pub enum CpuRenderError {
+    #[error("invalid model: {0}")]
+    Model(#[from] ModelError),
+    #[error("invalid camera: {0}")]
+    Camera(#[from] CameraError),
+    #[error("invalid light: {0}")]
+    Light(#[from] LightError),
+    #[error("level {level} does not exist: the model has levels 0..{count}")]
+    Level { level: u32, count: usize },
+    #[error("invalid options: {0}")]
+    Options(String),
+    #[error("pixel ({x}, {y}) came out as {value}: a bug in the renderer, please report it")]
+    NonFinite { x: u32, y: u32, value: Vec3 },
+}

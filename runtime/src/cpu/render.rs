@@ -1,0 +1,279 @@
+//! The per-pixel program (the CPU twin of the GPU renderer's fragment shader) and the
+//! image loop around it (rayon over rows).
+//!
+//! For a pixel: the camera ray enters the tile's top plane (outside the tile, or from
+//! below: background); the level comes from the pixel's footprint on that plane, or is
+//! fixed; the height field is marched from the entry to the first surface hit; the
+//! flyaway lists of that level are marched over the same stretch and composited front
+//! to back; what they let through sees the surface, shaded with its texel's lobes.
+
+
+// `!(x > 0.0)` is the NaN-aware test (NaN fails it), as the GLSL writes it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::flyaways::{FlyawayGrid, march_flyaways};
+use super::heightfield::{HeightTracer, HfTrace};
+use super::shading::{in_fiber_frame, shade};
+use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
+use crate::brdf::BrdfReading;
+use crate::hybrid::HybridModel;
+use crate::image::Image;
+use crate::scene::{Camera, Light, LightSample, Ray};
+
+/// Everything prepared once per image.
+pub struct Scene<'a> {
+    pub model: &'a HybridModel,
+    pub camera: &'a Camera,
+    pub lights: &'a [Light],
+    pub options: CpuRenderOptions,
+    pub tracer: HeightTracer,
+    pub shadows: bool,
+    reading: BrdfReading,
+    grids: Vec<FlyawayGrid>,
+}
+
+/// What one camera ray found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelTrace {
+    pub radiance: Vec3,
+    /// The level used (None: the ray missed the tile).
+    pub level: Option<usize>,
+    /// Ray parameter of the surface hit.
+    pub surface_t: Option<f32>,
+    /// Opacity of the flyaways in front of the surface (0 = none crossed).
+    pub flyaway_opacity: f32,
+    pub step_limited: bool,
+    pub shadow_step_limited: u32,
+    /// Height-field traversal steps of the camera ray.
+    pub steps: u32,
+}
+
+impl<'a> Scene<'a> {
+    /// Validates everything and builds the accelerators.
+    pub fn new(model: &'a HybridModel, camera: &'a Camera, lights: &'a [Light], options: CpuRenderOptions) -> Result<Scene<'a>, CpuRenderError> {
+        model.validate()?;
+        camera.validate()?;
+        for light in lights {
+            light.validate()?;
+        }
+        match options.level {
+            LevelChoice::Fixed(level) if level as usize >= model.levels.len() => return Err(CpuRenderError::Level { level, count: model.levels.len() }),
+            LevelChoice::Auto { bias } if !bias.is_finite() => return Err(CpuRenderError::Options(format!("level bias {bias} is not finite"))),
+            _ => {}
+        }
+        if options.supersampling == 0 || options.supersampling > 16 {
+            return Err(CpuRenderError::Options(format!("supersampling {} must be in 1..=16", options.supersampling)));
+        }
+        if options.max_steps == 0 || options.max_flyaway_columns == 0 {
+            return Err(CpuRenderError::Options("max_steps and max_flyaway_columns must be positive".into()));
+        }
+        if !options.background.is_finite() {
+            return Err(CpuRenderError::Options(format!("background {} is not finite", options.background)));
+        }
+        let shadows = match options.shadows {
+            ShadowMode::FromModel => model.meta.fitted_with_shadowing,
+            ShadowMode::On => true,
+            ShadowMode::Off => false,
+        };
+        let grids = (0..model.levels.len()).map(|l| FlyawayGrid::new(model, l, options.periodic)).collect();
+        Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, options })
+    }
+
+    /// Where a ray enters the top plane (t), or None: from below, parallel, or (on a
+    /// clamped tile) outside the tile.
+    pub fn enter_top(&self, ray: &Ray) -> Option<f32> {
+        let tile = &self.model.tile;
+        if !(ray.d.z < 0.0) || ray.o.z < tile.top_z {
+            return None;
+        }
+        let t = (tile.top_z - ray.o.z) / ray.d.z;
+        if !self.options.periodic {
+            let p = ray.at(t).truncate() - tile.origin;
+            if p.x < 0.0 || p.y < 0.0 || p.x > tile.size.x || p.y > tile.size.y {
+                return None;
+            }
+        }
+        Some(t)
+    }
+
+    /// The level for pixel (px, py) (continuous, pixel centre at +0.5).
+    pub fn pixel_level(&self, px: f32, py: f32) -> usize {
+        let last = self.model.levels.len() - 1;
+        match self.options.level {
+            LevelChoice::Fixed(l) => l as usize,
+            LevelChoice::Auto { bias } => {
+                let rho = self.footprint_texels(px, py);
+                if !(rho > 0.0) {
+                    return 0;
+                }
+                if !rho.is_finite() {
+                    return last;
+                }
+                // Vulkan's nearest-mip rule: λ = log2 ρ + bias, level = ⌊λ + ½⌋.
+                let lambda = rho.log2() + bias;
+                ((lambda + 0.5).floor().max(0.0) as usize).min(last)
+            }
+        }
+    }
+
+    /// The pixel's footprint on the top plane in level-0 texels: the longer of the
+    /// steps to the next pixel right and down (∞ if one of them misses the plane).
+    pub fn footprint_texels(&self, px: f32, py: f32) -> f32 {
+        let texel = self.model.texel_size();
+        let top = self.model.tile.top_z;
+        let on_plane = |x: f32, y: f32| -> Option<Vec2> {
+            let r = self.camera.ray(x, y);
+            if !(r.d.z < 0.0) || r.o.z < top {
+                return None;
+            }
+            Some(r.at((top - r.o.z) / r.d.z).truncate() / texel)
+        };
+        match (on_plane(px, py), on_plane(px + 1.0, py), on_plane(px, py + 1.0)) {
+            (Some(c), Some(a), Some(b)) => (a - c).length().max((b - c).length()),
+            _ => f32::INFINITY,
+        }
+    }
+
+    /// The level-ℓ texel under world point `p` (wrapped or clamped into the tile).
+    fn texel_at(&self, p: Vec3, level: usize) -> (u32, u32) {
+        let m = self.model;
+        let u = (p.truncate() - m.tile.origin) / m.texel_size();
+        let (w, h) = (m.width() as i32, m.height_px() as i32);
+        let (i, j) = (u.x.floor() as i32, u.y.floor() as i32);
+        let (i, j) = if self.options.periodic { (i.rem_euclid(w), j.rem_euclid(h)) } else { (i.clamp(0, w - 1), j.clamp(0, h - 1)) };
+        ((i >> level) as u32, (j >> level) as u32)
+    }
+
+    /// Visibility of a light from `p` (height-field shadow ray), counting step-limited
+    /// shadow rays.
+    fn visibility(&self, p: Vec3, s: &LightSample, limited: &mut u32) -> f32 {
+        if !self.shadows {
+            return 1.0;
+        }
+        let (blocked, hit_limit) = self.tracer.occluded(p, s.wi, s.distance, self.options.max_steps);
+        *limited += hit_limit as u32;
+        if blocked { 0.0 } else { 1.0 }
+    }
+
+    /// Traces one camera ray through continuous pixel position (px, py) at `level`.
+    pub fn trace_ray(&self, ray: &Ray, level: usize) -> PixelTrace {
+        let mut out = PixelTrace { radiance: self.options.background, ..Default::default() };
+        let Some(t_top) = self.enter_top(ray) else {
+            return out;
+        };
+        out.level = Some(level);
+        let wo = -ray.d;
+        let mut steps = 0;
+        let hit = self.tracer.trace(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps);
+        out.step_limited = hit == HfTrace::StepLimit;
+        out.steps = steps;
+        // The flyaways lie between the top plane and the surface (or the slab's bottom).
+        let t_bottom = t_top + self.model.tile.height_scale / -ray.d.z;
+        let t_end = match hit {
+            HfTrace::Hit(t) => t,
+            _ => t_bottom,
+        };
+        let mut shadow_limited = 0u32;
+        let l = &self.model.levels[level];
+        let mut transmittance = 1.0;
+        let mut radiance = Vec3::ZERO;
+        if let Some(f) = l.flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+            let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in| {
+                let p = ray.at(t_in);
+                let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
+                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited))
+            });
+            radiance = march.radiance;
+            transmittance = march.transmittance;
+            out.flyaway_opacity = 1.0 - transmittance;
+            out.step_limited |= march.limited;
+        }
+        if let HfTrace::Hit(t) = hit {
+            out.surface_t = Some(t);
+            if transmittance > 0.0 {
+                let p = ray.at(t);
+                let (i, j) = self.texel_at(p, level);
+                let b = l.texel_brdf(i, j);
+                radiance += transmittance * shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited));
+            }
+        }
+        out.radiance = radiance + transmittance * if out.surface_t.is_some() { Vec3::ZERO } else { self.options.background };
+        out.shadow_step_limited = shadow_limited;
+        out
+    }
+
+    /// One pixel: s×s samples on a regular grid, one level from the pixel's centre.
+    pub fn trace_pixel(&self, x: u32, y: u32) -> PixelTrace {
+        let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
+        let level = self.pixel_level(cx, cy);
+        let s = self.options.supersampling;
+        if s == 1 {
+            return self.trace_ray(&self.camera.ray(cx, cy), level);
+        }
+        let mut acc = PixelTrace::default();
+        let inv = 1.0 / s as f32;
+        for a in 0..s {
+            for b in 0..s {
+                let t = self.trace_ray(&self.camera.ray(x as f32 + (b as f32 + 0.5) * inv, y as f32 + (a as f32 + 0.5) * inv), level);
+                acc.radiance += t.radiance;
+                acc.level = acc.level.or(t.level);
+                acc.surface_t = acc.surface_t.or(t.surface_t);
+                acc.flyaway_opacity += t.flyaway_opacity;
+                acc.step_limited |= t.step_limited;
+                acc.shadow_step_limited += t.shadow_step_limited;
+                acc.steps += t.steps;
+            }
+        }
+        let n = (s * s) as f32;
+        acc.radiance /= n;
+        acc.flyaway_opacity /= n;
+        acc
+    }
+}
+
+/// Renders `model` seen by `camera` under `lights`: the CPU reference of the GPU
+/// renderer. Deterministic (no randomness; any thread count gives the same bits).
+pub fn render(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<Image, CpuRenderError> {
+    render_with_stats(model, camera, lights, options).map(|(image, _)| image)
+}
+
+/// [`render`], with statistics (levels used, hits, step-limited rays).
+pub fn render_with_stats(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<(Image, RenderStats), CpuRenderError> {
+    render_with_progress(model, camera, lights, options, &|| {})
+}
+
+/// [`render_with_stats`], calling `row_done` (from any thread) as each image row
+/// finishes, for a progress bar.
+pub fn render_with_progress(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, row_done: &(dyn Fn() + Sync)) -> Result<(Image, RenderStats), CpuRenderError> {
+    let scene = Scene::new(model, camera, lights, options.clone())?;
+    let (w, h) = (camera.width, camera.height);
+    let levels = model.levels.len();
+    let rows: Vec<(Vec<Vec3>, RenderStats)> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut stats = RenderStats { level_pixels: vec![0; levels], ..Default::default() };
+            let row = (0..w)
+                .map(|x| {
+                    let t = scene.trace_pixel(x, y);
+                    stats.add(&t);
+                    t.radiance
+                })
+                .collect();
+            row_done();
+            (row, stats)
+        })
+        .collect();
+    let mut stats = RenderStats { level_pixels: vec![0; levels], ..Default::default() };
+    let mut pixels = Vec::with_capacity((w * h) as usize);
+    for (row, s) in rows {
+        pixels.extend(row);
+        stats.merge(&s);
+    }
+    let image = Image { width: w, height: h, pixels };
+    if let Some((x, y, v)) = image.first_non_finite() {
+        return Err(CpuRenderError::NonFinite { x, y, value: v });
+    }
+    Ok((image, stats))
+}

@@ -1,0 +1,61 @@
+//! Shading a hit (the CPU twin of `shading.glsl`): the texel's lobes, or a flyaway's in
+//! its fiber frame, under each light, with optional height-field shadowing.
+//!
+//! Radiance toward ω_o (runtime/HYBRID_FORMAT.md §6):
+//!
+//! ```text
+//! L_o = Σ_lights E · V · [ k_d · max(n_0·ω_i, 0) + Σ_j cloth_lobe_j(ω_i, ω_o) · max(n_j·ω_i, 0) ]
+//! ```
+//!
+//! E the light's irradiance perpendicular to its beam at the point, V its visibility
+//! (1 without shadowing), lobe j in its own frame (n_j, t_j); lobe 0's frame carries
+//! the diffuse term. With one shared frame this is E·V·f_r·max(n·ω_i, 0), f_r of Eq. 1:
+//! exactly what the fit matches (DESIGN.md §5, "fit radiance, not ratios").
+
+use glam::Vec3;
+
+use crate::brdf::{BrdfReading, K_MAX, cloth_fiber_frame, cloth_lobe};
+use crate::hybrid::TexelBrdf;
+use crate::scene::{Light, LightSample};
+
+/// Reflected radiance toward `wo` per unit irradiance from `wi` (both unit, pointing
+/// away from the surface).
+#[inline]
+pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+    let p = &b.params;
+    let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    let mut r = kd * b.frames[0].n.dot(wi).max(0.0);
+    for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
+        let cos_i = frame.n.dot(wi);
+        if cos_i > 0.0 {
+            r += cloth_lobe(lobe, p.eta, p.a, frame, wi, wo, reading) * cos_i;
+        }
+    }
+    r
+}
+
+/// Replaces every frame of a flyaway BRDF by the fiber frame of axis `fiber` seen from
+/// `wo` (DESIGN.md §5).
+#[inline]
+pub fn in_fiber_frame(mut b: TexelBrdf, fiber: Vec3, wo: Vec3) -> TexelBrdf {
+    b.frames = [cloth_fiber_frame(fiber, wo); crate::brdf::MAX_LOBES];
+    b
+}
+
+/// Radiance leaving point `p` toward `wo` under `lights`; `visible(p, sample)` is the
+/// light's visibility in [0, 1] (shadowing).
+pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
+    let mut radiance = Vec3::ZERO;
+    for light in lights {
+        let s = light.sample(p);
+        if s.irradiance.max_element() <= 0.0 {
+            continue;
+        }
+        let response = texel_response(b, s.wi, wo, reading);
+        if response.max_element() <= 0.0 {
+            continue;
+        }
+        radiance += s.irradiance * response * visible(p, &s);
+    }
+    radiance
+}

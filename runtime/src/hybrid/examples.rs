@@ -1,0 +1,234 @@
+//! Hand-built hybrid models with known answers, for tests of every renderer (CPU here,
+//! GPU in the Vulkan renderer) and of the file format: no baker needed.
+
+use glam::{Vec2, Vec3};
+
+use super::error::ModelError;
+use super::flyaway::{FlyawayVoxel, Flyaways};
+use super::lobe::{BrdfTable, ClusteredTexel};
+use super::model::{BakeMetadata, HeightField, HybridModel, Level, Surface, Tile, level_dims, max_levels};
+use crate::brdf::{BrdfReading, ClothLobe, ClothParams};
+use crate::scene::Aabb;
+
+/// A silk-like BRDF: weak diffuse, a narrow and a wide lobe.
+pub fn silk_params() -> ClothParams {
+    ClothParams::new(
+        Vec3::new(0.06, 0.04, 0.03),
+        1.46,
+        1.0,
+        &[ClothLobe { k: Vec3::new(0.9, 0.8, 0.7), beta: 0.12, gamma: 0.8 }, ClothLobe { k: Vec3::new(0.3, 0.25, 0.2), beta: 0.35, gamma: ClothLobe::GAMMA_OFF }],
+    )
+}
+
+/// Metadata of a hand-built model over `tile`.
+pub fn example_meta(tile: &Tile, levels: usize, dims: [u32; 3]) -> BakeMetadata {
+    let min = Vec3::new(tile.origin.x, tile.origin.y, tile.top_z - tile.height_scale);
+    let max = Vec3::new(tile.origin.x + tile.size.x, tile.origin.y + tile.size.y, tile.top_z);
+    BakeMetadata {
+        reading: BrdfReading::Bounded,
+        fitted_with_shadowing: false,
+        fit_error: vec![-1.0; levels],
+        source_bbox: Aabb::new(min, max),
+        source_dims: dims,
+        seed: 0,
+        note: "hand-built example".into(),
+    }
+}
+
+/// A `w`×`h` model with `levels` levels on `tile`, whose depth below the top plane at
+/// texel centre (x, y) (world units) is `depth(x, y)`, and whose every texel at every
+/// level has BRDF `params` in frame (`n`, `t`) (level 0 clustered with one cluster,
+/// coarse levels per texel). No flyaways.
+#[allow(clippy::too_many_arguments)] // a test fixture: every argument is one property of the model
+pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f32, f32) -> f32, params: &ClothParams, n: Vec3, t: Vec3) -> Result<HybridModel, ModelError> {
+    let texel = tile.size / Vec2::new(w as f32, h as f32);
+    let mut depths = Vec::with_capacity(w as usize * h as usize);
+    for j in 0..h {
+        for i in 0..w {
+            let c = tile.origin + (Vec2::new(i as f32, j as f32) + 0.5) * texel;
+            depths.push(depth(c.x, c.y));
+        }
+    }
+    let height = HeightField::from_depths(w, h, &depths, tile.height_scale)?;
+    let levels = levels.clamp(1, max_levels(w, h));
+    let mut out = Vec::with_capacity(levels);
+    for level in 0..levels {
+        let (lw, lh) = level_dims(w, h, level);
+        let count = lw as usize * lh as usize;
+        let surface = if level == 0 {
+            let mut table = BrdfTable::new();
+            table.push(params);
+            Surface::Clustered { texels: vec![ClusteredTexel::new(n, t, 0); count], table }
+        } else {
+            let mut table = BrdfTable::new();
+            let lobes: Vec<(ClothLobe, Vec3, Vec3)> = params.lobes().iter().map(|l| (*l, n, t)).collect();
+            for _ in 0..count {
+                table.push_framed(params.kd, params.eta, params.a, &lobes);
+            }
+            Surface::PerTexel(table)
+        };
+        out.push(Level { width: lw, height: lh, surface, flyaways: None });
+    }
+    let dims = [w, h, (tile.height_scale / tile.voxel_depth).round().max(1.0) as u32];
+    let meta = example_meta(&tile, levels, dims);
+    let model = HybridModel { tile, height, levels: out, meta };
+    model.validate()?;
+    Ok(model)
+}
+
+/// Gives `level` of `model` flyaway voxels: `voxels` lists (i, j, voxel) at that level,
+/// all using BRDF `params` (one table entry).
+pub fn add_flyaways(model: &mut HybridModel, level: usize, voxels: &[(u32, u32, FlyawayVoxel)], params: &ClothParams) -> Result<(), ModelError> {
+    let mut table = BrdfTable::new();
+    table.push(params);
+    let l = &mut model.levels[level];
+    let f = Flyaways::from_columns(l.width, l.height, table, |i, j| voxels.iter().filter(|(vi, vj, _)| (*vi, *vj) == (i, j)).map(|(_, _, v)| FlyawayVoxel { param: 0, ..*v }).collect())?;
+    l.flyaways = Some(f);
+    model.validate()
+}
+
+/// A deterministic model that exercises every part of the format: a 12×10 tile (not a
+/// power of two), 4 levels, a clustered level 0 with 3 clusters and varying frames,
+/// per-texel coarse levels with 1–8 lobes, flyaways on levels 0 and 1, metadata.
+pub fn sample_model() -> HybridModel {
+    let (w, h) = (12u32, 10u32);
+    let tile = Tile { origin: Vec2::new(-0.6, -0.5), size: Vec2::new(1.2, 1.0), top_z: 0.25, height_scale: 0.2, voxel_depth: 0.0125 };
+    let depth = |x: f32, y: f32| 0.05 + 0.04 * (6.0 * x).sin() * (5.0 * y).cos();
+    let texel = tile.size / Vec2::new(w as f32, h as f32);
+    let depths: Vec<f32> = (0..h).flat_map(|j| (0..w).map(move |i| (i, j))).map(|(i, j)| depth(tile.origin.x + (i as f32 + 0.5) * texel.x, tile.origin.y + (j as f32 + 0.5) * texel.y)).collect();
+    let height = HeightField { width: w, height: h, codes: HeightField::from_depths(w, h, &depths, tile.height_scale).map(|hf| hf.codes).unwrap_or_default() };
+    let frame = |i: u32, j: u32| {
+        let n = Vec3::new(0.2 * (i as f32 * 0.7).sin(), 0.2 * (j as f32 * 0.9).cos(), 1.0).normalize();
+        let t = Vec3::new((i as f32 * 0.3).cos(), (j as f32 * 0.3).sin(), 0.0);
+        (n, t)
+    };
+    let lobe = |s: f32| ClothLobe { k: Vec3::new(0.5 + 0.1 * s, 0.4, 0.3), beta: 0.05 + 0.02 * s, gamma: if (s as u32).is_multiple_of(3) { 0.0 } else { 0.3 + 0.1 * s } };
+    let mut levels = Vec::new();
+    for level in 0..4 {
+        let (lw, lh) = level_dims(w, h, level);
+        let surface = if level == 0 {
+            let mut table = BrdfTable::new();
+            for c in 0..3 {
+                table.push(&ClothParams::new(Vec3::splat(0.05 * c as f32), 1.3 + 0.1 * c as f32, c as f32, &[lobe(c as f32), lobe(c as f32 + 1.0)]));
+            }
+            let texels = (0..lh).flat_map(|j| (0..lw).map(move |i| (i, j))).map(|(i, j)| {
+                let (n, t) = frame(i, j);
+                ClusteredTexel::new(n, t, ((i + 2 * j) % 3) as u16)
+            });
+            Surface::Clustered { texels: texels.collect(), table }
+        } else {
+            let mut table = BrdfTable::new();
+            for j in 0..lh {
+                for i in 0..lw {
+                    let count = 1 + ((i + j + level as u32) % 8) as usize;
+                    let lobes: Vec<(ClothLobe, Vec3, Vec3)> = (0..count).map(|k| (lobe(k as f32), frame(i + k as u32, j).0, frame(i, j + k as u32).1)).collect();
+                    table.push_framed(Vec3::new(0.1, 0.05, 0.02 * level as f32), 1.5, 0.5 * level as f32, &lobes);
+                }
+            }
+            Surface::PerTexel(table)
+        };
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None });
+    }
+    let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
+    let mut model = HybridModel { tile, height, levels, meta };
+    let fly = silk_params();
+    let mut voxels0: Vec<(u32, u32, FlyawayVoxel)> = (0..9u32).map(|k| ((k * 5) % w, (k * 3) % h, FlyawayVoxel { depth: (k % 4) as u16, alpha: 1.0, tangent: Vec3::new(1.0, k as f32 * 0.1, 0.3), param: 0 })).collect();
+    voxels0.push((0, 0, FlyawayVoxel { depth: 6, alpha: 1.0, tangent: Vec3::Z, param: 0 }));
+    let voxels1: Vec<(u32, u32, FlyawayVoxel)> = vec![(1, 1, FlyawayVoxel { depth: 0, alpha: 0.375, tangent: Vec3::Y, param: 0 }), (1, 1, FlyawayVoxel { depth: 2, alpha: 0.125, tangent: Vec3::X, param: 0 })];
+    // The builders cannot fail on these inputs; a failure shows up in validate() below.
+    let _ = add_flyaways(&mut model, 0, &voxels0, &fly);
+    let _ = add_flyaways(&mut model, 1, &voxels1, &fly);
+    model
+}
+
+/// A woven-looking synthetic model of `n`×`n` texels for benchmarks: yarn-scale bumps,
+/// warp/weft tangents with fiber-level normal noise, 8 clusters at level 0, two framed
+/// lobes per texel at coarse levels, and sparse flyaways (≈ 2% of columns) downsampled
+/// to every level with alpha = the fraction of filled children. Deterministic in `seed`.
+pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
+    use crate::brdf::twin::SplitMix64;
+    let tile = Tile { origin: Vec2::ZERO, size: Vec2::ONE, top_z: 0.1, height_scale: 0.1, voxel_depth: 0.1 / 64.0 };
+    let yarns = 8.0;
+    let depth = |x: f32, y: f32| 0.05 + 0.02 * (std::f32::consts::TAU * yarns * x).sin() * (std::f32::consts::TAU * yarns * y).sin();
+    let warp = |x: f32, y: f32| ((yarns * x).floor() + (yarns * y).floor()) as i32 % 2 == 0;
+    let texel = 1.0 / n as f32;
+    let centre = |i: u32, j: u32| ((i as f32 + 0.5) * texel, (j as f32 + 0.5) * texel);
+    let depths: Vec<f32> = (0..n).flat_map(|j| (0..n).map(move |i| (i, j))).map(|(i, j)| { let (x, y) = centre(i, j); depth(x, y) }).collect();
+    let height = HeightField { width: n, height: n, codes: HeightField::from_depths(n, n, &depths, tile.height_scale).map(|h| h.codes).unwrap_or_default() };
+    let mut rng = SplitMix64(seed);
+    let frame = |rng: &mut SplitMix64, x: f32, y: f32| {
+        let e = 1e-3;
+        let gx = (depth(x + e, y) - depth(x - e, y)) / (2.0 * e);
+        let gy = (depth(x, y + e) - depth(x, y - e)) / (2.0 * e);
+        // Depth grows downward: the surface normal leans toward increasing depth.
+        let n = (Vec3::new(gx, gy, 1.0) + 0.15 * Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)).normalize();
+        (n, if warp(x, y) { Vec3::X } else { Vec3::Y })
+    };
+    let lobe = |s: f32| ClothLobe { k: Vec3::new(0.6, 0.5, 0.4) * (0.5 + s), beta: 0.05 + 0.1 * s, gamma: 0.4 + s };
+    let mut levels = Vec::new();
+    let count = max_levels(n, n);
+    for level in 0..count {
+        let (lw, lh) = level_dims(n, n, level);
+        let surface = if level == 0 {
+            let mut table = BrdfTable::new();
+            for c in 0..8 {
+                let s = c as f32 / 8.0;
+                table.push(&ClothParams::new(Vec3::new(0.1, 0.05, 0.03) * (1.0 + s), 1.46, 1.0 + s, &[lobe(s), lobe(1.0 - s)]));
+            }
+            let mut texels = Vec::with_capacity((lw * lh) as usize);
+            for j in 0..lh {
+                for i in 0..lw {
+                    let (x, y) = centre(i, j);
+                    let (nn, t) = frame(&mut rng, x, y);
+                    let cluster = ((rng.next_u64() % 4) as u16) + if warp(x, y) { 0 } else { 4 };
+                    texels.push(ClusteredTexel::new(nn, t, cluster));
+                }
+            }
+            Surface::Clustered { texels, table }
+        } else {
+            let mut table = BrdfTable::new();
+            let size = texel * (1u32 << level) as f32;
+            for j in 0..lh {
+                for i in 0..lw {
+                    let (x, y) = ((i as f32 + 0.5) * size, (j as f32 + 0.5) * size);
+                    let (nn, _) = frame(&mut rng, x, y);
+                    table.push_framed(Vec3::new(0.12, 0.06, 0.04), 1.46, 1.5, &[(lobe(0.3), nn, Vec3::X), (lobe(0.6), nn, Vec3::Y)]);
+                }
+            }
+            Surface::PerTexel(table)
+        };
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None });
+    }
+    // Level-0 flyaway voxels, then their downsampling.
+    let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            if rng.next_u64().is_multiple_of(50) {
+                for _ in 0..1 + rng.next_u64() % 3 {
+                    let (x, y) = centre(i, j);
+                    let limit = ((depth(x, y) / tile.voxel_depth) as u64).max(2);
+                    voxels.push((i, j, (rng.next_u64() % limit) as u16, rng.unit_vector()));
+                }
+            }
+        }
+    }
+    voxels.sort_by_key(|v| (v.1, v.0, v.2));
+    voxels.dedup_by_key(|v| (v.0, v.1, v.2));
+    let fly = silk_params();
+    for (level, l) in levels.iter_mut().enumerate() {
+        let mut cells: std::collections::BTreeMap<(u32, u32, u16), (u32, Vec3)> = std::collections::BTreeMap::new();
+        for &(i, j, k, t) in &voxels {
+            let e = cells.entry((i >> level, j >> level, k >> level)).or_insert((0, t));
+            e.0 += 1;
+        }
+        let children = 8f32.powi(level as i32);
+        let mut table = BrdfTable::new();
+        table.push(&fly);
+        let f = Flyaways::from_columns(l.width, l.height, table, |i, j| {
+            cells.range((i, j, 0)..=(i, j, u16::MAX)).map(|(&(_, _, k), &(c, t))| FlyawayVoxel { depth: k, alpha: (c as f32 / children).min(1.0), tangent: t, param: 0 }).collect()
+        });
+        l.flyaways = f.ok();
+    }
+    let meta = BakeMetadata { note: format!("synthetic_model({n}, {seed})"), seed, ..example_meta(&tile, count, [n, n, 64]) };
+    HybridModel { tile, height, levels, meta }
+}

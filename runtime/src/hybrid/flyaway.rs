@@ -1,0 +1,255 @@
+//! The flyaway volume of one level as per-texel linked lists of non-empty voxels above
+//! the height field (paper §6; DESIGN.md §5–§6).
+//!
+//! Texel (i, j) of level ℓ owns the column of voxels over its footprint; voxel `depth` =
+//! k of that column spans depths [k·s_ℓ, (k+1)·s_ℓ] below the tile's top plane, with
+//! s_ℓ = `voxel_depth`·2^ℓ (the flyaway volume is downsampled in x, y and z alike).
+//! `heads[j·w + i]` is the first node of the column's list, or [`NO_NODE`]; `next`
+//! links the rest. Lists go strictly down (depth increasing), which is what a ray
+//! marching down meets first, and rules out cycles by construction; every node is on
+//! exactly one list. A node is 16 bytes: next, depth, alpha (the fraction of filled
+//! children at coarse levels, 1 at level 0), the fiber axis ω_f (shading frame of
+//! DESIGN.md §5: t = ω_f, n = ω_o made perpendicular to t) and an index into the
+//! level's flyaway BRDF table.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use super::error::{ModelError, TableKind};
+use super::lobe::BrdfTable;
+use super::packing::{octahedral_decode, octahedral_encode, unorm16, unorm16_value};
+
+/// End of a list.
+pub const NO_NODE: u32 = u32::MAX;
+
+/// One non-empty flyaway voxel. 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct FlyawayNode {
+    /// Index of the next node of the same column, or [`NO_NODE`].
+    pub next: u32,
+    /// Voxel index below the top plane at this level: depths [k·s_ℓ, (k+1)·s_ℓ].
+    pub depth: u16,
+    /// Coverage α ∈ (0, 1], unorm16 (never 0: empty voxels are not stored).
+    pub alpha: u16,
+    /// Fiber axis ω_f, octahedral 2×snorm16 (sign irrelevant).
+    pub tangent: [u16; 2],
+    /// Index into the level's flyaway BRDF table.
+    pub param: u32,
+}
+
+const _: () = assert!(core::mem::size_of::<FlyawayNode>() == 16);
+
+impl FlyawayNode {
+    pub fn alpha(&self) -> f32 {
+        unorm16_value(self.alpha)
+    }
+
+    pub fn tangent(&self) -> Vec3 {
+        octahedral_decode(self.tangent)
+    }
+}
+
+/// A flyaway voxel as a baker or a test describes it (the builder's input).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlyawayVoxel {
+    /// Voxel index below the top plane at this level.
+    pub depth: u16,
+    /// Coverage in (0, 1].
+    pub alpha: f32,
+    /// Fiber direction (need not be unit).
+    pub tangent: Vec3,
+    /// Index into the level's flyaway BRDF table.
+    pub param: u32,
+}
+
+/// One level's flyaway lists and their BRDF table.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Flyaways {
+    /// Per texel (x fastest): first node, or [`NO_NODE`].
+    pub heads: Vec<u32>,
+    pub nodes: Vec<FlyawayNode>,
+    /// The BRDFs the nodes index (lobe frames unused: the fiber frame is used).
+    pub table: BrdfTable,
+}
+
+impl FlyawayVoxel {
+    /// The level-0 depth index of source voxel layer `z` (0 at the bottom face) of a
+    /// volume `zres` voxels thick: layers are counted down from the top plane.
+    pub fn depth_of_voxel_layer(z: u32, zres: u32) -> Option<u16> {
+        zres.checked_sub(z + 1).and_then(|k| u16::try_from(k).ok())
+    }
+}
+
+impl Flyaways {
+    /// Builds the lists of a `width`×`height` level from each column's voxels (in any
+    /// order; they are sorted by depth). Nodes are stored column by column, top down, so
+    /// a list is contiguous in memory. Errors: two voxels at one depth, α outside (0, 1].
+    pub fn from_columns(width: u32, height: u32, table: BrdfTable, mut column: impl FnMut(u32, u32) -> Vec<FlyawayVoxel>) -> Result<Flyaways, ModelError> {
+        let mut heads = Vec::with_capacity(width as usize * height as usize);
+        let mut nodes: Vec<FlyawayNode> = Vec::new();
+        for j in 0..height {
+            for i in 0..width {
+                let mut voxels = column(i, j);
+                voxels.sort_by_key(|v| v.depth);
+                heads.push(if voxels.is_empty() { NO_NODE } else { nodes.len() as u32 });
+                for (k, v) in voxels.iter().enumerate() {
+                    let node = nodes.len() as u32;
+                    if k > 0 && voxels[k - 1].depth == v.depth {
+                        return Err(ModelError::FlyawayOrder { level: 0, i, j, node, depth: v.depth, prev: v.depth });
+                    }
+                    if !(v.alpha > 0.0 && v.alpha <= 1.0) || unorm16(v.alpha) == 0 {
+                        return Err(ModelError::FlyawayNode { level: 0, node, why: format!("alpha {} is not in (0, 1]", v.alpha) });
+                    }
+                    let next = if k + 1 < voxels.len() { node + 1 } else { NO_NODE };
+                    nodes.push(FlyawayNode { next, depth: v.depth, alpha: unorm16(v.alpha), tangent: octahedral_encode(v.tangent), param: v.param });
+                }
+            }
+        }
+        Ok(Flyaways { heads, nodes, table })
+    }
+
+    /// The list of texel `index` (= j·width + i), top down. Stops after `nodes.len()`
+    /// steps even on an unvalidated cyclic list.
+    pub fn list(&self, index: usize) -> FlyawayList<'_> {
+        FlyawayList { nodes: &self.nodes, current: self.heads.get(index).copied().unwrap_or(NO_NODE), remaining: self.nodes.len() }
+    }
+
+    /// Checks the lists of a `width`×`height` level ℓ = `level`: links in range, depths
+    /// strictly increasing along each list and below `depth_limit`, each node on exactly
+    /// one list, α > 0, parameter indices in range, and the table itself. O(nodes).
+    pub fn validate(&self, level: usize, width: u32, height: u32, depth_limit: u32) -> Result<(), ModelError> {
+        let texels = width as u64 * height as u64;
+        if self.heads.len() as u64 != texels {
+            return Err(ModelError::Length { what: "flyaway list heads", level, expected: texels, got: self.heads.len() as u64 });
+        }
+        if self.nodes.len() >= NO_NODE as usize {
+            return Err(ModelError::Length { what: "flyaway nodes", level, expected: NO_NODE as u64 - 1, got: self.nodes.len() as u64 });
+        }
+        self.table.validate(TableKind::Flyaways, level, 0)?;
+        let len = self.nodes.len();
+        let mut seen = vec![false; len];
+        for (index, &head) in self.heads.iter().enumerate() {
+            let (i, j) = ((index % width as usize) as u32, (index / width as usize) as u32);
+            let mut link = ("head", head);
+            let mut prev: Option<u16> = None;
+            while link.1 != NO_NODE {
+                let node = link.1;
+                let n = self.nodes.get(node as usize).ok_or(ModelError::FlyawayLink { level, i, j, link: link.0, index: node, len })?;
+                if let Some(p) = prev.filter(|&p| n.depth <= p) {
+                    return Err(ModelError::FlyawayOrder { level, i, j, node, depth: n.depth, prev: p });
+                }
+                // Strictly increasing depths bound a list's length by 65536 and rule out
+                // cycles; `seen` rules out lists sharing a tail.
+                if std::mem::replace(&mut seen[node as usize], true) {
+                    return Err(ModelError::FlyawayShared { level, node, i, j });
+                }
+                if n.alpha == 0 {
+                    return Err(ModelError::FlyawayNode { level, node, why: "alpha is 0 (empty voxels are not stored)".into() });
+                }
+                if n.depth as u32 >= depth_limit {
+                    return Err(ModelError::FlyawayNode { level, node, why: format!("depth index {} is below the height field's slab ({} voxels deep at this level)", n.depth, depth_limit) });
+                }
+                if n.param as usize >= self.table.headers.len() {
+                    return Err(ModelError::FlyawayNode { level, node, why: format!("BRDF index {} past the table's {} entries", n.param, self.table.headers.len()) });
+                }
+                prev = Some(n.depth);
+                link = ("next", n.next);
+            }
+        }
+        if let Some(node) = seen.iter().position(|s| !s) {
+            return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
+        }
+        Ok(())
+    }
+
+    /// Bytes these lists take in the file (heads, nodes, table).
+    pub fn byte_size(&self) -> u64 {
+        (self.heads.len() * 4 + self.nodes.len() * size_of::<FlyawayNode>()) as u64 + self.table.byte_size()
+    }
+}
+
+/// The nodes of one list, top down.
+pub struct FlyawayList<'a> {
+    nodes: &'a [FlyawayNode],
+    current: u32,
+    remaining: usize,
+}
+
+impl<'a> Iterator for FlyawayList<'a> {
+    type Item = &'a FlyawayNode;
+
+    fn next(&mut self) -> Option<&'a FlyawayNode> {
+        if self.remaining == 0 {
+            return None;
+        }
+        let node = self.nodes.get(self.current as usize)?;
+        self.remaining -= 1;
+        self.current = node.next;
+        Some(node)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{ClothLobe, ClothParams};
+
+    fn table() -> BrdfTable {
+        let mut t = BrdfTable::new();
+        t.push(&ClothParams::new(Vec3::splat(0.1), 1.5, 0.0, &[ClothLobe { k: Vec3::ONE, beta: 0.2, gamma: 0.0 }]));
+        t
+    }
+
+    fn voxel(depth: u16) -> FlyawayVoxel {
+        FlyawayVoxel { depth, alpha: 1.0, tangent: Vec3::X, param: 0 }
+    }
+
+    #[test]
+    fn builder_sorts_columns_and_validation_accepts_them() {
+        let f = Flyaways::from_columns(3, 2, table(), |i, j| if (i + j) % 2 == 0 { vec![voxel(5), voxel(2), voxel(9)] } else { vec![] }).unwrap();
+        f.validate(0, 3, 2, 10).unwrap();
+        let depths: Vec<u16> = f.list(0).map(|n| n.depth).collect();
+        assert_eq!(depths, [2, 5, 9]);
+        assert_eq!(f.list(1).count(), 0);
+        assert_eq!(f.nodes.len(), 9);
+        assert!(matches!(f.validate(0, 3, 2, 9), Err(ModelError::FlyawayNode { .. })), "depth 9 is outside a 9-voxel slab");
+    }
+
+    #[test]
+    fn cycles_shared_tails_and_strays_are_rejected() {
+        let mut f = Flyaways::from_columns(2, 1, table(), |i, _| if i == 0 { vec![voxel(1), voxel(2)] } else { vec![voxel(3)] }).unwrap();
+        f.validate(0, 2, 1, 10).unwrap();
+        let good = f.clone();
+        // Cycle: the second node points back at the first.
+        f.nodes[1].next = 0;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayOrder { node: 0, .. })));
+        assert_eq!(f.list(0).count(), 3, "iteration stops even on a cycle");
+        // Shared tail: column 1 starts inside column 0's list.
+        let mut f = good.clone();
+        f.heads[1] = 1;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayShared { node: 1, .. })));
+        // Dangling link.
+        let mut f = good.clone();
+        f.nodes[0].next = 77;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayLink { index: 77, .. })));
+        // A node on no list.
+        let mut f = good.clone();
+        f.heads[1] = NO_NODE;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayUnreached { node: 2, .. })));
+        // Bad parameter index and zero alpha.
+        let mut f = good.clone();
+        f.nodes[2].param = 1;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayNode { node: 2, .. })));
+        let mut f = good;
+        f.nodes[0].alpha = 0;
+        assert!(matches!(f.validate(0, 2, 1, 10), Err(ModelError::FlyawayNode { node: 0, .. })));
+    }
+
+    #[test]
+    fn builder_rejects_duplicates_and_bad_alpha() {
+        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![voxel(1), voxel(1)]).is_err());
+        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayVoxel { alpha: 0.0, ..voxel(1) }]).is_err());
+        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayVoxel { alpha: f32::NAN, ..voxel(1) }]).is_err());
+    }
+}

@@ -1,0 +1,286 @@
+//! Packed BRDF records of the hybrid model: the per-texel (or per-cluster) header, the
+//! lobe, and the clustered texel; the tables that hold them; and their decoding into
+//! the BRDF twin's types (runtime/HYBRID_FORMAT.md §"Records").
+//!
+//! | record            | bytes | holds                                                 |
+//! |-------------------|-------|-------------------------------------------------------|
+//! | [`BrdfHeader`]     | 16    | k_d (3×f16), η, a (f16), lobe count, first lobe       |
+//! | [`PackedLobe`]     | 16    | n (oct 2×snorm16), t (angle 16), k (3×f16), β, γ (f16)     |
+//! | [`ClusteredTexel`] | 8     | n (oct 2×snorm16), t (angle 16), cluster index (u16)       |
+//!
+//! A table is a header array plus a lobe array; header h uses lobes
+//! `lobe_offset .. lobe_offset + lobe_count`. In cluster and flyaway tables the lobes'
+//! frames are unused (written as zero): the frame comes from the texel or the fiber.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use super::error::{ModelError, TableKind};
+use super::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
+use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ETA_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
+
+/// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct BrdfHeader {
+    /// k_d, RGB, f16 bits.
+    pub kd: [u16; 3],
+    /// η, f16 bits.
+    pub eta: u16,
+    /// Shadowing exponent a, f16 bits.
+    pub a: u16,
+    /// Number of lobes, 0..=8 (≥ 1 for per-texel headers: lobe 0's frame is the texel's).
+    pub lobe_count: u8,
+    /// Must be 0.
+    pub reserved: u8,
+    /// Index of the first lobe in the table's lobe array.
+    pub lobe_offset: u32,
+}
+
+/// One lobe: its frame (unused in cluster and flyaway tables) and k, β, γ. 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedLobe {
+    /// Normal, octahedral 2×snorm16.
+    pub normal: [u16; 2],
+    /// Tangent as an angle around the normal (see [`super::packing`]).
+    pub tangent_angle: u16,
+    /// k, RGB, f16 bits.
+    pub k: [u16; 3],
+    /// β (radians), f16 bits.
+    pub beta: u16,
+    /// γ (radians), f16 bits; 0 = the φ falloff is off (γ = ∞).
+    pub gamma: u16,
+}
+
+/// A level-0 texel of the clustered encoding: its frame and its cluster. 8 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct ClusteredTexel {
+    pub normal: [u16; 2],
+    pub tangent_angle: u16,
+    /// Index into the level's cluster table.
+    pub cluster: u16,
+}
+
+const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
+const _: () = assert!(core::mem::size_of::<PackedLobe>() == 16);
+const _: () = assert!(core::mem::size_of::<ClusteredTexel>() == 8);
+
+/// Packs a frame: the normal's octahedral code and the tangent's angle around the
+/// *decoded* normal (so that decoding reproduces it).
+pub fn encode_frame(n: Vec3, t: Vec3) -> ([u16; 2], u16) {
+    let code = octahedral_encode(n);
+    (code, tangent_angle_encode(octahedral_decode(code), t))
+}
+
+/// Unpacks a frame (orthonormal by construction).
+pub fn decode_frame(normal: [u16; 2], tangent_angle: u16) -> ClothFrame {
+    let n = octahedral_decode(normal);
+    let t = tangent_angle_decode(n, tangent_angle);
+    ClothFrame { n, t, b: n.cross(t) }
+}
+
+impl PackedLobe {
+    /// Packs a lobe; `frame` = (n, t), or `None` in cluster and flyaway tables.
+    pub fn new(lobe: &ClothLobe, frame: Option<(Vec3, Vec3)>) -> PackedLobe {
+        let (normal, tangent_angle) = frame.map(|(n, t)| encode_frame(n, t)).unwrap_or(([0, 0], 0));
+        PackedLobe { normal, tangent_angle, k: lobe.k.to_array().map(f16_bits), beta: f16_bits(lobe.beta), gamma: f16_bits(lobe.gamma) }
+    }
+
+    pub fn lobe(&self) -> ClothLobe {
+        ClothLobe { k: Vec3::from_array(self.k.map(f16_value)), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }
+    }
+
+    pub fn frame(&self) -> ClothFrame {
+        decode_frame(self.normal, self.tangent_angle)
+    }
+}
+
+impl ClusteredTexel {
+    pub fn new(n: Vec3, t: Vec3, cluster: u16) -> ClusteredTexel {
+        let (normal, tangent_angle) = encode_frame(n, t);
+        ClusteredTexel { normal, tangent_angle, cluster }
+    }
+
+    pub fn frame(&self) -> ClothFrame {
+        decode_frame(self.normal, self.tangent_angle)
+    }
+}
+
+impl BrdfHeader {
+    pub fn kd(&self) -> Vec3 {
+        Vec3::from_array(self.kd.map(f16_value))
+    }
+
+    pub fn eta(&self) -> f32 {
+        f16_value(self.eta)
+    }
+
+    pub fn a(&self) -> f32 {
+        f16_value(self.a)
+    }
+
+    /// The header's lobe index range (assumes a validated table).
+    pub fn lobe_range(&self) -> std::ops::Range<usize> {
+        let start = self.lobe_offset as usize;
+        start..start + self.lobe_count as usize
+    }
+}
+
+/// A BRDF decoded for shading: k_d, η, a and up to eight lobes, each with its own frame
+/// (all equal for a clustered texel). No allocation: fixed arrays, as in the shader.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelBrdf {
+    pub params: ClothParams,
+    pub frames: [ClothFrame; MAX_LOBES],
+}
+
+/// Headers and lobes: a cluster table, a flyaway table, or a level's per-texel BRDFs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BrdfTable {
+    pub headers: Vec<BrdfHeader>,
+    pub lobes: Vec<PackedLobe>,
+}
+
+impl BrdfTable {
+    pub fn new() -> BrdfTable {
+        BrdfTable::default()
+    }
+
+    /// Appends a BRDF whose lobes take their frame from elsewhere (cluster and flyaway
+    /// tables); returns its index. At most [`MAX_LOBES`] lobes are kept.
+    pub fn push(&mut self, p: &ClothParams) -> u32 {
+        self.push_lobes(p.kd, p.eta, p.a, p.lobes().iter().map(|l| PackedLobe::new(l, None)))
+    }
+
+    /// Appends a BRDF whose lobes have their own frames (n, t) (per-texel encoding).
+    pub fn push_framed(&mut self, kd: Vec3, eta: f32, a: f32, lobes: &[(ClothLobe, Vec3, Vec3)]) -> u32 {
+        self.push_lobes(kd, eta, a, lobes.iter().take(MAX_LOBES).map(|(l, n, t)| PackedLobe::new(l, Some((*n, *t)))))
+    }
+
+    fn push_lobes(&mut self, kd: Vec3, eta: f32, a: f32, lobes: impl Iterator<Item = PackedLobe>) -> u32 {
+        let lobe_offset = self.lobes.len() as u32;
+        self.lobes.extend(lobes.take(MAX_LOBES));
+        let lobe_count = (self.lobes.len() as u32 - lobe_offset) as u8;
+        self.headers.push(BrdfHeader { kd: kd.to_array().map(f16_bits), eta: f16_bits(eta), a: f16_bits(a), lobe_count, reserved: 0, lobe_offset });
+        self.headers.len() as u32 - 1
+    }
+
+    /// Entry `index` with its lobes, all in the frame `frame` (cluster and flyaway tables).
+    /// Panics on an index past the end: validate the model first.
+    pub fn brdf_in_frame(&self, index: usize, frame: ClothFrame) -> TexelBrdf {
+        let h = &self.headers[index];
+        let mut params = ClothParams { kd: h.kd(), eta: h.eta(), a: h.a(), lobe_count: h.lobe_count as u32, ..Default::default() };
+        for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
+            params.lobes[j] = lobe.lobe();
+        }
+        TexelBrdf { params, frames: [frame; MAX_LOBES] }
+    }
+
+    /// Entry `index` with each lobe in its own frame (per-texel encoding).
+    pub fn brdf_framed(&self, index: usize) -> TexelBrdf {
+        let h = &self.headers[index];
+        let mut params = ClothParams { kd: h.kd(), eta: h.eta(), a: h.a(), lobe_count: h.lobe_count as u32, ..Default::default() };
+        let mut frames = [cloth_frame(Vec3::Z, Vec3::X); MAX_LOBES];
+        for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
+            params.lobes[j] = lobe.lobe();
+            frames[j] = lobe.frame();
+        }
+        TexelBrdf { params, frames }
+    }
+
+    /// Checks every header and lobe: counts and ranges, finite parameters in range.
+    /// `min_lobes` is 1 for per-texel headers (lobe 0 carries the texel's frame).
+    pub fn validate(&self, table: TableKind, level: usize, min_lobes: u32) -> Result<(), ModelError> {
+        for (entry, h) in self.headers.iter().enumerate() {
+            let count = h.lobe_count as u32;
+            if count < min_lobes || count > MAX_LOBES as u32 {
+                return Err(ModelError::LobeCount { table, level, entry, count, min: min_lobes });
+            }
+            if h.reserved != 0 {
+                return Err(ModelError::Reserved { table, level, entry, value: h.reserved });
+            }
+            if h.lobe_offset as u64 + count as u64 > self.lobes.len() as u64 {
+                return Err(ModelError::LobeRange { table, level, entry, offset: h.lobe_offset, count, len: self.lobes.len() });
+            }
+            let param = |field, value: f32, ok: bool, range| if ok { Ok(()) } else { Err(ModelError::Param { table, level, entry, field, value, range }) };
+            let kd = h.kd();
+            for (field, v) in [("k_d.r", kd.x), ("k_d.g", kd.y), ("k_d.b", kd.z)] {
+                param(field, v, v.is_finite() && v >= 0.0, "finite, >= 0")?;
+            }
+            param("eta", h.eta(), (1.0..=ETA_MAX).contains(&h.eta()), "[1, 4]")?;
+            param("a", h.a(), (0.0..=A_MAX).contains(&h.a()), "[0, 1e4]")?;
+        }
+        for (index, lobe) in self.lobes.iter().enumerate() {
+            let l = lobe.lobe();
+            let bad = |field, value, range| {
+                if table == TableKind::Flyaways {
+                    ModelError::FlyawayLobeParam { level, lobe: index, field, value, range }
+                } else {
+                    ModelError::LobeParam { level, lobe: index, field, value, range }
+                }
+            };
+            for (field, v) in [("k.r", l.k.x), ("k.g", l.k.y), ("k.b", l.k.z)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(bad(field, v, "finite, >= 0"));
+                }
+            }
+            // The BRDF clamps β and γ into range; a stored value outside it would not
+            // render as stored, so it is an error here. 0.999: f16 rounding of the bounds.
+            if !(l.beta >= BETA_MIN * 0.999 && l.beta <= BETA_MAX) {
+                return Err(bad("beta", l.beta, "[1e-3, 1e4]"));
+            }
+            if !(l.gamma == 0.0 || (l.gamma >= GAMMA_MIN * 0.999 && l.gamma <= GAMMA_MAX)) {
+                return Err(bad("gamma", l.gamma, "0 (off) or [1e-3, 1e4]"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Bytes this table takes in the file.
+    pub fn byte_size(&self) -> u64 {
+        (self.headers.len() * size_of::<BrdfHeader>() + self.lobes.len() * size_of::<PackedLobe>()) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{BrdfReading, cloth_brdf};
+
+    #[test]
+    fn table_round_trip_is_within_half_precision() {
+        let p = ClothParams::new(
+            Vec3::new(0.1, 0.2, 0.3),
+            1.45,
+            2.5,
+            &[ClothLobe { k: Vec3::new(0.9, 0.5, 0.1), beta: 0.07, gamma: 0.4 }, ClothLobe { k: Vec3::splat(0.2), beta: 0.3, gamma: 0.0 }],
+        );
+        let mut table = BrdfTable::new();
+        assert_eq!(table.push(&p), 0);
+        table.validate(TableKind::SurfaceClusters, 0, 0).unwrap();
+        let frame = cloth_frame(Vec3::Z, Vec3::X);
+        let back = table.brdf_in_frame(0, frame).params;
+        assert_eq!(back.lobe_count, 2);
+        let (wi, wo) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.35, 0.05, 0.9).normalize());
+        let a = cloth_brdf(&p, &frame, wi, wo, BrdfReading::Bounded);
+        let b = cloth_brdf(&back, &frame, wi, wo, BrdfReading::Bounded);
+        // f16 parameters: 2⁻¹¹ relative each; the exponent's sensitivity to β adds a few.
+        assert!((a - b).abs().max_element() < 5e-3 * a.max_element(), "{a} vs {b}");
+    }
+
+    #[test]
+    fn validation_names_the_bad_entry() {
+        let mut table = BrdfTable::new();
+        table.push(&ClothParams::new(Vec3::ONE, 1.5, 1.0, &[ClothLobe { k: Vec3::ONE, beta: 0.1, gamma: 0.0 }]));
+        table.push(&ClothParams::new(Vec3::ONE, 0.5, 1.0, &[ClothLobe { k: Vec3::ONE, beta: 0.1, gamma: 0.0 }]));
+        let e = table.validate(TableKind::SurfaceClusters, 2, 0).unwrap_err();
+        assert!(matches!(e, ModelError::Param { entry: 1, field: "eta", level: 2, .. }), "{e}");
+        let mut table = BrdfTable::new();
+        table.push(&ClothParams::new(Vec3::ONE, 1.5, 1.0, &[ClothLobe { k: Vec3::new(1.0, f32::NAN, 0.0), beta: 0.1, gamma: 0.0 }]));
+        assert!(matches!(table.validate(TableKind::Flyaways, 0, 0), Err(ModelError::FlyawayLobeParam { field: "k.g", .. })));
+        table.headers[0].lobe_offset = u32::MAX;
+        assert!(matches!(table.validate(TableKind::Flyaways, 0, 0), Err(ModelError::LobeRange { .. })));
+    }
+}

@@ -1,0 +1,264 @@
+//! The CPU renderer's images against analytic ones: a flat height field with a constant
+//! BRDF under point and directional lights, level choice from the footprint, alpha
+//! compositing at coarse levels, periodic tiling, determinism, and bad input.
+
+use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
+use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
+use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
+use fabric_runtime::hybrid::{BrdfTable, FlyawayVoxel, Surface, Tile, examples, level_dims};
+use fabric_runtime::scene::{Camera, Light, Projection};
+use glam::{Vec2, Vec3};
+
+fn tile() -> Tile {
+    Tile { origin: Vec2::new(-0.5, -0.5), size: Vec2::ONE, top_z: 0.3, height_scale: 0.3, voxel_depth: 0.01 }
+}
+
+#[test]
+fn flat_surface_matches_the_analytic_image() {
+    // Surface at depth 0.1 (z = 0.2), tilted normal map, silk BRDF; point light and a
+    // perspective camera, then a directional light and an orthographic one.
+    let params = examples::silk_params();
+    let (n, t) = (Vec3::new(0.15, -0.1, 1.0), Vec3::new(1.0, 0.3, 0.0));
+    let m = examples::uniform_model(32, 32, 1, tile(), |_, _| 0.1, &params, n, t).unwrap();
+    let decoded = m.levels[0].texel_brdf(3, 7);
+    let frame = decoded.frames[0];
+    let cases = [
+        (
+            Camera { origin: Vec3::new(0.1, -1.2, 1.1), target: Vec3::new(0.0, 0.0, 0.2), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 45.0 }, width: 64, height: 48 },
+            Light::Point { position: Vec3::new(-0.2, 0.3, 0.9), intensity: Vec3::new(1.0, 0.9, 0.8) },
+        ),
+        (Camera::orbit_orthographic(35.0, -70.0, Vec3::new(0.0, 0.0, 0.2), 3.0, 1.3, 50, 40), Light::directional(Vec3::new(-0.4, 0.5, 1.0), Vec3::splat(1.5))),
+    ];
+    for (k, (cam, light)) in cases.iter().enumerate() {
+        let opts = CpuRenderOptions { level: LevelChoice::Fixed(0), shadows: ShadowMode::On, ..Default::default() };
+        let (image, stats) = render_with_stats(&m, cam, &[*light], &opts).unwrap();
+        let mut surface = 0;
+        for py in 0..cam.height {
+            for px in 0..cam.width {
+                let ray = cam.ray(px as f32 + 0.5, py as f32 + 0.5);
+                // Exact: the plane z = 0.2, inside the tile, entered through the top.
+                let (o, d) = (ray.o.as_dvec3(), ray.d.as_dvec3());
+                let t_plane = (0.2 - o.z) / d.z;
+                let t_top = (0.3 - o.z) / d.z;
+                let p = o + d * t_plane;
+                let q = o + d * t_top;
+                let inside = |v: glam::DVec3| v.x.abs() <= 0.5 && v.y.abs() <= 0.5;
+                let got = image.get(px, py);
+                // Rays within 1e-4 of the tile's edge may go either way.
+                if (p.x.abs() - 0.5).abs() < 1e-4 || (p.y.abs() - 0.5).abs() < 1e-4 || (q.x.abs() - 0.5).abs() < 1e-4 || (q.y.abs() - 0.5).abs() < 1e-4 {
+                    continue;
+                }
+                if !(d.z < 0.0 && inside(p) && inside(q)) {
+                    assert_eq!(got, Vec3::ZERO, "case {k}, pixel ({px}, {py}) should miss the tile");
+                    continue;
+                }
+                let p = p.as_vec3();
+                let s = light.sample(p);
+                let wo = -ray.d;
+                // Eq. 1 with the model's (f16-quantized) parameters and (packed) frame.
+                let want = s.irradiance * cloth_brdf(&decoded.params, &frame, s.wi, wo, BrdfReading::Bounded) * frame.n.dot(s.wi).max(0.0);
+                // Tolerance: the hit point is exact to f32 rounding (~1e-7 relative);
+                // the point light's 1/d² and the lobes turn that into ≲ 1e-5.
+                assert!((got - want).abs().max_element() <= 1e-5 * want.max_element().max(1e-4), "case {k}, pixel ({px}, {py}): {got} vs {want}");
+                surface += 1;
+            }
+        }
+        assert!(surface > 1000, "case {k}: {surface} surface pixels");
+        assert!(stats.surface_pixels >= surface, "{} < {surface}", stats.surface_pixels);
+        assert_eq!(stats.step_limited_pixels, 0);
+    }
+    // Against the unquantized parameters: the f16/octahedral packing costs < 0.5%.
+    let f_exact = fabric_runtime::brdf::cloth_frame(n, t);
+    let (wi, wo) = (Vec3::new(0.3, 0.2, 0.9).normalize(), Vec3::new(-0.35, -0.2, 0.9).normalize());
+    let a = cloth_brdf(&params, &f_exact, wi, wo, BrdfReading::Bounded);
+    let b = cloth_brdf(&decoded.params, &frame, wi, wo, BrdfReading::Bounded);
+    assert!((a - b).abs().max_element() < 5e-3 * a.max_element(), "{a} vs {b}");
+}
+
+/// A model whose level ℓ is pure diffuse with k_d = colour(ℓ): the image says the level.
+fn level_coded_model(n: u32, levels: usize) -> fabric_runtime::hybrid::HybridModel {
+    let colour = |l: usize| Vec3::new(0.1 + 0.2 * l as f32, 0.5, 0.9 - 0.2 * l as f32);
+    let mut m = examples::uniform_model(n, n, levels, Tile { origin: Vec2::ZERO, size: Vec2::ONE, top_z: 0.0, height_scale: 0.1, voxel_depth: 0.01 }, |_, _| 0.05, &ClothParams::new(Vec3::ZERO, 1.5, 0.0, &[ClothLobe { k: Vec3::ZERO, beta: 0.1, gamma: 0.0 }]), Vec3::Z, Vec3::X).unwrap();
+    for (l, level) in m.levels.iter_mut().enumerate() {
+        let (w, h) = level_dims(n, n, l);
+        let mut table = BrdfTable::new();
+        let lobes = [(ClothLobe { k: Vec3::ZERO, beta: 0.1, gamma: 0.0 }, Vec3::Z, Vec3::X)];
+        for _ in 0..w * h {
+            table.push_framed(colour(l), 1.5, 0.0, &lobes);
+        }
+        level.surface = Surface::PerTexel(table);
+    }
+    m.validate().unwrap();
+    m
+}
+
+#[test]
+fn level_follows_the_pixel_footprint() {
+    let n = 64;
+    let m = level_coded_model(n, 5);
+    let light = [Light::directional(Vec3::Z, Vec3::ONE)];
+    // Straight down over the unit tile: footprint ρ = (1 / pixels) / (1 / 64) texels.
+    for (pixels, bias, want) in [(64u32, 0.0f32, 0usize), (32, 0.0, 1), (16, 0.0, 2), (8, 0.0, 3), (4, 0.0, 4), (2, 0.0, 4), (64, 1.0, 1), (32, -1.0, 0), (45, 0.0, 1), (23, 0.0, 1), (22, 0.0, 2)] {
+        let cam = Camera { origin: Vec3::new(0.5, 0.5, 2.0), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 1.0 }, width: pixels, height: pixels };
+        let opts = CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() };
+        let (image, stats) = render_with_stats(&m, &cam, &light, &opts).unwrap();
+        // ρ = 64/pixels: level ⌊log2 ρ + bias + ½⌋ (45 px: ρ = 1.42, log2 = 0.51 → 1;
+        // 23 px: 2.78 → 1.48 → 1; 22 px: 2.91 → 1.54 → 2).
+        assert_eq!(stats.level_pixels[want], (pixels * pixels) as u64, "{pixels} px, bias {bias}: {:?}", stats.level_pixels);
+        let expect = Vec3::new(0.1 + 0.2 * want as f32, 0.5, 0.9 - 0.2 * want as f32);
+        assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px: {}", image.get(pixels / 2, pixels / 2));
+    }
+    // Fixed levels override the footprint; a level past the chain is an error.
+    let cam = Camera { origin: Vec3::new(0.5, 0.5, 2.0), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 1.0 }, width: 8, height: 8 };
+    let scene = Scene::new(&m, &cam, &light, CpuRenderOptions { level: LevelChoice::Fixed(2), ..Default::default() }).unwrap();
+    assert_eq!(scene.trace_pixel(4, 4).level, Some(2));
+    assert!(matches!(render(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Fixed(5), ..Default::default() }), Err(CpuRenderError::Level { level: 5, count: 5 })));
+    // A perspective view of a receding plane walks down the chain toward the horizon.
+    let cam = Camera { origin: Vec3::new(0.5, -0.3, 0.4), target: Vec3::new(0.5, 0.6, 0.0), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 40, height: 40 };
+    let (_, stats) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
+    assert!(stats.level_pixels.iter().filter(|&&c| c > 0).count() >= 3, "{:?}", stats.level_pixels);
+}
+
+#[test]
+fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
+    // Level 1 of a 16² model: texels of 1/8, voxel depth s₁ = 2 · 0.01. One voxel with
+    // α = 0.5 over a flat surface; opacity 1 − (1 − α)^(ℓ/s), s = (Δx₁Δy₁s₁)^(1/3).
+    let m0 = level_coded_model(16, 3);
+    let mut m = m0.clone();
+    let fly = ClothParams::new(Vec3::new(0.9, 0.1, 0.1), 1.5, 0.0, &[]);
+    examples::add_flyaways(&mut m, 1, &[(3, 4, FlyawayVoxel { depth: 1, alpha: 0.5, tangent: Vec3::X, param: 0 })], &fly).unwrap();
+    let light = Light::directional(Vec3::new(0.2, 0.1, 1.0), Vec3::ONE);
+    let (s1, dx1) = (0.02f32, 0.125f32);
+    let edge = (dx1 * dx1 * s1).cbrt();
+    let (lo, hi) = (Vec3::new(0.375, 0.5, -0.04), Vec3::new(0.5, 0.625, -0.02));
+    let alpha = m.levels[1].flyaways.as_ref().unwrap().nodes[0].alpha();
+    let mut checked = 0;
+    for (theta, phi) in [(0.0f32, 0.0f32), (50.0, 10.0), (70.0, 135.0)] {
+        let dir = fabric_runtime::scene::direction_from_angles(theta, phi);
+        let cam = Camera { origin: Vec3::new(0.44, 0.56, -0.03) + 2.0 * dir, target: Vec3::new(0.44, 0.56, -0.03), up: if theta == 0.0 { Vec3::Y } else { Vec3::Z }, projection: Projection::Orthographic { extent: 0.3 }, width: 48, height: 48 };
+        let opts = CpuRenderOptions { level: LevelChoice::Fixed(1), ..Default::default() };
+        let lights = [light];
+        let scene = Scene::new(&m, &cam, &lights, opts.clone()).unwrap();
+        let plain = Scene::new(&m0, &cam, &lights, opts).unwrap();
+        for py in 0..48 {
+            for px in 0..48 {
+                let ray = cam.ray(px as f32 + 0.5, py as f32 + 0.5);
+                let (o, d) = (ray.o, ray.d);
+                let (mut t0, mut t1) = (f32::NEG_INFINITY, f32::INFINITY);
+                for a in 0..3 {
+                    if d[a].abs() > 1e-9 {
+                        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+                        t0 = t0.max(ta.min(tb));
+                        t1 = t1.min(ta.max(tb));
+                    } else if o[a] < lo[a] || o[a] > hi[a] {
+                        t0 = f32::INFINITY;
+                    }
+                }
+                let path = (t1 - t0).max(0.0);
+                let got = scene.trace_ray(&ray, 1);
+                let behind = plain.trace_ray(&ray, 1).radiance;
+                if path < 1e-4 {
+                    if t1 < t0 - 1e-4 {
+                        assert!((got.radiance - behind).abs().max_element() < 1e-6, "pixel ({px}, {py}) misses the voxel");
+                    }
+                    continue;
+                }
+                let opacity = 1.0 - (1.0 - alpha).powf(path / edge);
+                let wo = -d;
+                let b = in_fiber_frame(m.levels[1].flyaways.as_ref().unwrap().table.brdf_in_frame(0, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)), Vec3::X, wo);
+                let s = light.sample(Vec3::ZERO);
+                let l_fly = s.irradiance * texel_response(&b, s.wi, wo, BrdfReading::Bounded);
+                let want = opacity * l_fly + (1.0 - opacity) * behind;
+                // Path lengths agree to f32 rounding of the box crossings (~1e-6 of 0.02).
+                assert!((got.flyaway_opacity - opacity).abs() < 2e-4, "view ({theta}, {phi}) pixel ({px}, {py}): opacity {} vs {opacity} (path {path})", got.flyaway_opacity);
+                assert!((got.radiance - want).abs().max_element() < 2e-4, "view ({theta}, {phi}) pixel ({px}, {py}): {} vs {want}", got.radiance);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 300, "{checked} pixels through the voxel");
+    // Straight down the path is s₁: opacity = 1 − ½^(s₁/edge), edge = (0.125²·0.02)^(1/3)
+    // = 0.06786, so 1 − ½^0.29472 = 0.18477 (worked by hand).
+    assert!((1.0 - 0.5f32.powf(s1 / edge) - 0.18477).abs() < 1e-4);
+}
+
+#[test]
+fn periodic_tiles_repeat_and_clamped_tiles_end() {
+    let m = examples::sample_model();
+    let light = [Light::directional(Vec3::new(0.3, 0.2, 1.0), Vec3::ONE)];
+    // Straight down over two tile widths (2.4 × 2.0), pixel grid aligned with the tiles:
+    // 48 px per tile width in x (1.2), 40 px per tile height in y (1.0).
+    let cam = Camera { origin: Vec3::new(0.6, 0.5, 2.0), target: Vec3::new(0.6, 0.5, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 2.4 }, width: 96, height: 80 };
+    let opts = CpuRenderOptions { level: LevelChoice::Fixed(0), periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let image = render(&m, &cam, &light, &opts).unwrap();
+    let mut worst = 0.0f32;
+    for y in 0..40 {
+        for x in 0..48 {
+            let a = image.get(x, y);
+            for (dx, dy) in [(48, 0), (0, 40), (48, 40)] {
+                worst = worst.max((a - image.get(x + dx, y + dy)).abs().max_element() / a.max_element().max(1e-3));
+            }
+        }
+    }
+    // Positions one period apart differ by f32 rounding only (flyaway crossings, hits).
+    assert!(worst < 1e-3, "periodic repeats differ by {worst}");
+    let clamped = render(&m, &cam, &light, &CpuRenderOptions { periodic: false, ..opts }).unwrap();
+    // The tile covers x ∈ [−0.6, 0.6], y ∈ [−0.5, 0.5]: the upper-right quadrant of
+    // this view (x > 0.6 or y > 0.5 on screen) is background.
+    assert_eq!(clamped.get(80, 10), Vec3::ZERO);
+    assert!(clamped.get(20, 60).max_element() > 0.0);
+}
+
+#[test]
+fn renders_are_bit_identical_for_any_thread_count() {
+    let m = examples::sample_model();
+    let cam = Camera { origin: Vec3::new(0.3, -1.5, 1.2), target: Vec3::new(0.0, 0.0, 0.1), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 64, height: 48 };
+    let lights = [Light::Point { position: Vec3::new(0.5, -0.5, 1.0), intensity: Vec3::splat(2.0) }, Light::directional(Vec3::new(-0.3, 0.1, 0.5), Vec3::splat(0.5))];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, supersampling: 2, ..Default::default() };
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| render(&m, &cam, &lights, &opts).unwrap());
+    let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap().install(|| render(&m, &cam, &lights, &opts).unwrap());
+    assert_eq!(one, three);
+    assert!(one.mean() > 0.0);
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let m = examples::sample_model();
+    let cam = Camera { origin: Vec3::new(0.0, 0.0, 2.0), target: Vec3::ZERO, up: Vec3::Y, projection: Projection::Orthographic { extent: 1.0 }, width: 8, height: 8 };
+    let light = [Light::directional(Vec3::Z, Vec3::ONE)];
+    let ok = CpuRenderOptions::default();
+    assert!(matches!(render(&m, &Camera { up: Vec3::Z, ..cam }, &light, &ok), Err(CpuRenderError::Camera(_))));
+    assert!(matches!(render(&m, &cam, &[Light::directional(Vec3::ZERO, Vec3::ONE)], &ok), Err(CpuRenderError::Light(_))));
+    assert!(matches!(render(&m, &cam, &light, &CpuRenderOptions { supersampling: 0, ..ok.clone() }), Err(CpuRenderError::Options(_))));
+    assert!(matches!(render(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias: f32::NAN }, ..ok.clone() }), Err(CpuRenderError::Options(_))));
+    let mut broken = m.clone();
+    broken.tile.height_scale = -1.0;
+    assert!(matches!(render(&broken, &cam, &light, &ok), Err(CpuRenderError::Model(_))));
+    // No lights: black, not an error.
+    assert_eq!(render(&m, &cam, &[], &ok).unwrap().mean(), 0.0);
+}
+
+#[test]
+fn extreme_but_valid_models_render_finite() {
+    // Parameters at the ends of their ranges (huge k, narrowest β, γ on and off, a = 1e4,
+    // η = 4) under grazing and overhead lights, from grazing and overhead views.
+    let params = ClothParams::new(
+        Vec3::splat(65504.0),
+        4.0,
+        1e4,
+        &[ClothLobe { k: Vec3::splat(65504.0), beta: 1e-3, gamma: 1e-3 }, ClothLobe { k: Vec3::ZERO, beta: 1e4, gamma: 0.0 }, ClothLobe { k: Vec3::splat(1.0), beta: 0.001, gamma: 1e4 }],
+    );
+    let depth = |x: f32, y: f32| 0.15 + 0.14 * (40.0 * x).sin() * (37.0 * y).cos();
+    let mut m = examples::uniform_model(16, 16, 5, tile(), depth, &params, Vec3::new(0.0, 0.0, -1.0), Vec3::Z).unwrap();
+    examples::add_flyaways(&mut m, 0, &[(1, 1, FlyawayVoxel { depth: 0, alpha: 1.0, tangent: Vec3::Z, param: 0 })], &params).unwrap();
+    for (theta, phi) in [(0.0f32, 0.0f32), (89.0, 45.0)] {
+        let cam = Camera::orbit_orthographic(theta, phi, Vec3::new(0.0, 0.0, 0.3), 3.0, 1.5, 24, 24);
+        let lights = [Light::directional(fabric_runtime::scene::direction_from_angles(89.9, 10.0), Vec3::splat(1e3)), Light::Point { position: Vec3::new(0.0, 0.0, 0.3), intensity: Vec3::ONE }];
+        for periodic in [false, true] {
+            let opts = CpuRenderOptions { periodic, shadows: ShadowMode::On, max_steps: 64, ..Default::default() };
+            let image = render(&m, &cam, &lights, &opts).unwrap();
+            assert!(image.first_non_finite().is_none());
+            assert!(image.pixels.iter().all(|p| p.min_element() >= 0.0));
+        }
+    }
+}

@@ -1,0 +1,382 @@
+//! The `.hyb` file: round trips, layout, and the corruption catalogue (every kind of
+//! damaged, truncated or hostile file gets its own clear error, never a panic), plus a
+//! quick randomized corruption run. The long run is `#[ignore]`d: see the end.
+
+use fabric_runtime::hybrid::format::{self, FormatError, HEADER_SIZE, MAGIC, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind};
+use fabric_runtime::hybrid::{HybridModel, ModelError, NO_NODE, Surface, examples};
+
+fn sample() -> HybridModel {
+    let m = examples::sample_model();
+    m.validate().expect("the sample model is valid");
+    m
+}
+
+fn sample_bytes() -> Vec<u8> {
+    format::to_bytes(&sample()).unwrap()
+}
+
+/// A file taken apart into its sections, to be edited and put back together with
+/// correct CRCs, so that tests reach the semantic checks behind the checksums (a
+/// hostile file can carry valid CRCs).
+struct Parts {
+    header: Vec<u8>,
+    sections: Vec<(SectionEntry, Vec<u8>)>,
+}
+
+impl Parts {
+    fn of(bytes: &[u8]) -> Parts {
+        let count = u32::from_le_bytes(bytes[32..36].try_into().unwrap()) as usize;
+        let sections = (0..count)
+            .map(|k| {
+                let e = SectionEntry::from_bytes(&bytes[HEADER_SIZE + k * SECTION_ENTRY_SIZE..]);
+                (e, bytes[e.offset as usize..(e.offset + e.length) as usize].to_vec())
+            })
+            .collect();
+        Parts { header: bytes[..HEADER_SIZE].to_vec(), sections }
+    }
+
+    fn find(&mut self, kind: SectionKind, level: u32) -> &mut Vec<u8> {
+        &mut self.sections.iter_mut().find(|(e, _)| e.kind == kind as u32 && e.level == level).unwrap().1
+    }
+
+    fn entry(&mut self, kind: SectionKind, level: u32) -> &mut SectionEntry {
+        &mut self.sections.iter_mut().find(|(e, _)| e.kind == kind as u32 && e.level == level).unwrap().0
+    }
+
+    /// Lays the sections out again (64-aligned, in order) with fresh CRCs and sizes.
+    fn assemble(&self) -> Vec<u8> {
+        let table_len = self.sections.len() * SECTION_ENTRY_SIZE;
+        let mut offset = ((HEADER_SIZE + table_len) as u64).div_ceil(64) * 64;
+        let mut entries = Vec::new();
+        for (e, data) in &self.sections {
+            entries.push(SectionEntry { offset, length: data.len() as u64, crc32: crc32fast::hash(data), ..*e });
+            offset = (offset + data.len() as u64).div_ceil(64) * 64;
+        }
+        let size = entries.last().map_or(offset, |e| e.offset + e.length) as usize;
+        let mut out = vec![0u8; size];
+        out[..HEADER_SIZE].copy_from_slice(&self.header);
+        let table: Vec<u8> = entries.iter().flat_map(|e| e.to_bytes()).collect();
+        out[HEADER_SIZE..HEADER_SIZE + table_len].copy_from_slice(&table);
+        for (e, (_, data)) in entries.iter().zip(&self.sections) {
+            out[e.offset as usize..(e.offset + e.length) as usize].copy_from_slice(data);
+        }
+        out[16..24].copy_from_slice(&(size as u64).to_le_bytes());
+        out[32..36].copy_from_slice(&(entries.len() as u32).to_le_bytes());
+        out[48..52].copy_from_slice(&crc32fast::hash(&table).to_le_bytes());
+        reseal_header(&mut out);
+        out
+    }
+}
+
+/// Recomputes the header CRC after an edit of the header.
+fn reseal_header(b: &mut [u8]) {
+    b[44..48].fill(0);
+    let crc = crc32fast::hash(&b[..HEADER_SIZE]);
+    b[44..48].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Recomputes the table CRC (and then the header's) after an edit of the table.
+fn reseal_table(b: &mut [u8]) {
+    let count = u32::from_le_bytes(b[32..36].try_into().unwrap()) as usize;
+    let crc = crc32fast::hash(&b[HEADER_SIZE..HEADER_SIZE + count * SECTION_ENTRY_SIZE]);
+    b[48..52].copy_from_slice(&crc.to_le_bytes());
+    reseal_header(b);
+}
+
+fn edit_entry(b: &mut [u8], index: usize, f: impl FnOnce(&mut SectionEntry)) {
+    let at = HEADER_SIZE + index * SECTION_ENTRY_SIZE;
+    let mut e = SectionEntry::from_bytes(&b[at..]);
+    f(&mut e);
+    b[at..at + SECTION_ENTRY_SIZE].copy_from_slice(&e.to_bytes());
+    reseal_table(b);
+}
+
+/// What a corruption case expects of the error.
+type Expect = fn(&FormatError) -> bool;
+
+fn err(bytes: &[u8]) -> FormatError {
+    match format::read(bytes) {
+        Ok(_) => panic!("a corrupt file was accepted"),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn round_trip_is_exact_and_deterministic() {
+    let m = sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    assert_eq!(format::to_bytes(&m).unwrap(), bytes, "same model, same bytes");
+    // Through a file (memory-mapped read).
+    let dir = std::env::temp_dir().join(format!("fabric-hyb-{}", std::process::id()));
+    let path = dir.join("sample.hyb");
+    format::write_file(&m, &path).unwrap();
+    assert_eq!(format::read_file(&path).unwrap(), m);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn models_of_every_shape_round_trip() {
+    let params = examples::silk_params();
+    for (w, h, levels) in [(1, 1, 1), (1, 7, 3), (16, 16, 5), (5, 3, 2)] {
+        let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::new(w as f32, h as f32), top_z: 1.0, height_scale: 1.0, voxel_depth: 0.25 };
+        let m = examples::uniform_model(w, h, levels, tile, |x, _| 0.01 * x, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
+        assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap(), m, "{w}x{h}, {levels} levels");
+    }
+}
+
+#[test]
+fn layout_follows_the_spec() {
+    let bytes = sample_bytes();
+    assert_eq!(&bytes[0..8], &MAGIC);
+    assert_eq!(u16::from_le_bytes([bytes[8], bytes[9]]), format::VERSION_MAJOR);
+    assert_eq!(u64::from_le_bytes(bytes[16..24].try_into().unwrap()), bytes.len() as u64);
+    let info = format::inspect(&bytes).unwrap();
+    for s in &info.sections {
+        assert_eq!(s.offset % 64, 0, "{s:?}");
+    }
+    // MODEL, META, HEIGHT; level 0: 3 clustered + 4 flyaway; level 1: 2 + 4; levels 2, 3: 2 each.
+    assert_eq!(info.sections.len(), 3 + 7 + 6 + 2 + 2);
+    assert_eq!(info.sections.iter().filter(|s| s.optional).map(|s| s.kind.as_str()).collect::<Vec<_>>(), ["META"]);
+    let height = info.sections.iter().find(|s| s.kind == "HEIGHT").unwrap();
+    assert_eq!(height.length, 12 * 10 * 2);
+    assert_eq!(info.model.level_stats[0].encoding, "clustered");
+    assert_eq!(info.model.level_stats[0].clusters, Some(3));
+    assert_eq!(info.model.level_stats[0].flyaway_nodes, 10);
+    assert_eq!(info.model.level_stats[1].flyaway_longest_list, 2);
+    assert_eq!(info.model.level_stats[1].fit_error, Some(0.045));
+    assert_eq!(info.model.level_stats[2].fit_error, None, "negative = not measured");
+}
+
+#[test]
+fn minor_versions_and_unknown_optional_sections_are_read() {
+    let mut bytes = sample_bytes();
+    bytes[10..12].copy_from_slice(&7u16.to_le_bytes());
+    reseal_header(&mut bytes);
+    assert_eq!(format::read(&bytes).unwrap(), sample());
+    let mut parts = Parts::of(&sample_bytes());
+    parts.sections.insert(2, (SectionEntry { kind: 999, flags: SECTION_OPTIONAL, level: 3, ..Default::default() }, vec![0xab; 100]));
+    assert_eq!(format::read(&parts.assemble()).unwrap(), sample());
+    // Without META the model reads, with empty metadata.
+    let mut parts = Parts::of(&sample_bytes());
+    parts.sections.retain(|(e, _)| e.kind != SectionKind::Meta as u32);
+    let m = format::read(&parts.assemble()).unwrap();
+    assert_eq!((m.meta.seed, m.meta.note.as_str()), (0, ""));
+    assert_eq!(m.levels, sample().levels);
+}
+
+#[test]
+fn container_corruption_catalogue() {
+    let good = sample_bytes();
+    let len = good.len();
+    let cases: Vec<(&str, Vec<u8>, Expect)> = vec![
+        ("empty", vec![], |e| matches!(e, FormatError::TooShort { len: 0, .. })),
+        ("10 bytes", good[..10].to_vec(), |e| matches!(e, FormatError::TooShort { .. })),
+        ("bad magic", { let mut b = good.clone(); b[1] = b'X'; b }, |e| matches!(e, FormatError::BadMagic { .. })),
+        ("major 2", { let mut b = good.clone(); b[8] = 2; reseal_header(&mut b); b }, |e| matches!(e, FormatError::UnsupportedVersion { major: 2, .. })),
+        ("truncated by one byte", good[..len - 1].to_vec(), |e| matches!(e, FormatError::FileSize { .. })),
+        ("extra bytes", { let mut b = good.clone(); b.push(0); b }, |e| matches!(e, FormatError::FileSize { .. })),
+        ("header bit flip", { let mut b = good.clone(); b[30] ^= 4; b }, |e| matches!(e, FormatError::HeaderChecksum { .. })),
+        ("header size past the end", { let mut b = good.clone(); b[12..16].copy_from_slice(&u32::MAX.to_le_bytes()); b }, |e| matches!(e, FormatError::Header { field: "header_size", .. })),
+        ("table past the end", { let mut b = good.clone(); b[24..32].copy_from_slice(&(u64::MAX - 8).to_le_bytes()); reseal_header(&mut b); b }, |e| matches!(e, FormatError::TableBounds { .. })),
+        ("4 billion sections", { let mut b = good.clone(); b[32..36].copy_from_slice(&u32::MAX.to_le_bytes()); reseal_header(&mut b); b }, |e| matches!(e, FormatError::Header { field: "section_count", .. })),
+        ("section count past the table", { let mut b = good.clone(); b[32..36].copy_from_slice(&4000u32.to_le_bytes()); reseal_header(&mut b); b }, |e| matches!(e, FormatError::TableBounds { .. } | FormatError::TableChecksum { .. })),
+        ("entry size 8", { let mut b = good.clone(); b[36..40].copy_from_slice(&8u32.to_le_bytes()); reseal_header(&mut b); b }, |e| matches!(e, FormatError::Header { field: "section_entry_size", .. })),
+        ("table bit flip", { let mut b = good.clone(); b[HEADER_SIZE + 20] ^= 1; b }, |e| matches!(e, FormatError::TableChecksum { .. })),
+        ("section data bit flip", { let mut b = good.clone(); let n = b.len(); b[n - 3] ^= 0x10; b }, |e| matches!(e, FormatError::SectionChecksum { .. })),
+        ("length past the end", { let mut b = good.clone(); edit_entry(&mut b, 2, |e| e.length = 1 << 40); b }, |e| matches!(e, FormatError::Section { index: 2, .. })),
+        ("offset + length overflows", { let mut b = good.clone(); edit_entry(&mut b, 2, |e| { e.offset = u64::MAX - 63; e.length = 128 }); b }, |e| matches!(e, FormatError::Section { index: 2, .. })),
+        ("misaligned offset", { let mut b = good.clone(); edit_entry(&mut b, 2, |e| e.offset += 4); b }, |e| matches!(e, FormatError::Section { index: 2, .. })),
+        ("section inside the table", { let mut b = good.clone(); edit_entry(&mut b, 2, |e| { e.offset = 64; e.length = 0 }); b }, |e| matches!(e, FormatError::Section { index: 2, .. })),
+    ];
+    for (name, bytes, expect) in cases {
+        let e = err(&bytes);
+        assert!(expect(&e), "{name}: unexpected error {e:?}");
+        assert!(!e.to_string().is_empty());
+    }
+}
+
+#[test]
+fn overlapping_and_duplicate_sections_are_rejected() {
+    let mut b = sample_bytes();
+    // Point section 3 at section 2's bytes, with the matching CRC: an overlap.
+    let at2 = SectionEntry::from_bytes(&b[HEADER_SIZE + 2 * SECTION_ENTRY_SIZE..]);
+    edit_entry(&mut b, 3, |e| { e.offset = at2.offset; e.length = at2.length; e.crc32 = at2.crc32 });
+    assert!(matches!(err(&b), FormatError::Section { why, .. } if why.contains("overlaps")));
+    let mut parts = Parts::of(&sample_bytes());
+    let dup = parts.sections[2].clone();
+    parts.sections.push(dup);
+    assert!(matches!(err(&parts.assemble()), FormatError::Duplicate { kind: "HEIGHT", .. }));
+}
+
+#[test]
+fn semantic_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("unknown required section", |p| p.sections.push((SectionEntry { kind: 999, ..Default::default() }, vec![1; 8])), |e| matches!(e, FormatError::UnknownRequired { kind: 999, .. })),
+        ("missing HEIGHT", |p| p.sections.retain(|(e, _)| e.kind != SectionKind::Height as u32), |e| matches!(e, FormatError::Missing { kind: "HEIGHT", .. })),
+        ("missing MODEL", |p| p.sections.retain(|(e, _)| e.kind != SectionKind::Model as u32), |e| matches!(e, FormatError::Missing { kind: "MODEL", .. })),
+        ("missing level-2 lobes", |p| p.sections.retain(|(e, _)| !(e.kind == SectionKind::SurfaceLobes as u32 && e.level == 2)), |e| matches!(e, FormatError::Missing { kind: "SURFACE_LOBES", .. })),
+        ("section for level 9", |p| p.entry(SectionKind::SurfaceLobes, 3).level = 9, |e| matches!(e, FormatError::Section { level: 9, .. })),
+        ("MODEL width 0", |p| p.find(SectionKind::Model, 0)[0..4].copy_from_slice(&0u32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
+        ("MODEL width 2^31", |p| p.find(SectionKind::Model, 0)[0..4].copy_from_slice(&(1u32 << 31).to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
+        ("MODEL 99 levels", |p| p.find(SectionKind::Model, 0)[8..12].copy_from_slice(&99u32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
+        ("MODEL 3 levels of 4", |p| p.find(SectionKind::Model, 0)[8..12].copy_from_slice(&3u32.to_le_bytes()), |e| matches!(e, FormatError::Section { level: 3, .. })),
+        ("MODEL reading 7", |p| p.find(SectionKind::Model, 0)[12..16].copy_from_slice(&7u32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
+        ("MODEL truncated", |p| p.find(SectionKind::Model, 0).truncate(20), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
+        ("tile size NaN", |p| p.find(SectionKind::Model, 0)[32..36].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "size.x", .. }))),
+        ("height scale −1", |p| p.find(SectionKind::Model, 0)[44..48].copy_from_slice(&(-1f32).to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "height_scale", .. }))),
+        ("HEIGHT short", |p| p.find(SectionKind::Height, 0).truncate(100), |e| matches!(e, FormatError::Invalid(ModelError::HeightLength { .. }))),
+        ("HEIGHT odd length", |p| p.find(SectionKind::Height, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "HEIGHT")),
+        ("NaN k_d", |p| p.find(SectionKind::SurfaceHeaders, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Param { field: "k_d.r", .. }))),
+        ("infinite β", |p| p.find(SectionKind::SurfaceLobes, 1)[12..14].copy_from_slice(&0x7c00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::LobeParam { field: "beta", .. }))),
+        ("negative γ", |p| p.find(SectionKind::SurfaceLobes, 2)[14..16].copy_from_slice(&0xbc00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::LobeParam { field: "gamma", .. }))),
+        ("η = 0.5", |p| p.find(SectionKind::FlyawayHeaders, 0)[6..8].copy_from_slice(&0x3800u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Param { field: "eta", .. }))),
+        ("9 lobes", |p| p.find(SectionKind::SurfaceHeaders, 1)[10] = 9, |e| matches!(e, FormatError::Invalid(ModelError::LobeCount { count: 9, .. }))),
+        ("no lobes in a per-texel header", |p| p.find(SectionKind::SurfaceHeaders, 1)[10] = 0, |e| matches!(e, FormatError::Invalid(ModelError::LobeCount { count: 0, .. }))),
+        ("lobe offset u32::MAX", |p| p.find(SectionKind::SurfaceHeaders, 2)[12..16].copy_from_slice(&u32::MAX.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::LobeRange { .. }))),
+        ("reserved byte set", |p| p.find(SectionKind::SurfaceHeaders, 0)[11] = 1, |e| matches!(e, FormatError::Invalid(ModelError::Reserved { .. }))),
+        ("cluster index past the table", |p| p.find(SectionKind::SurfaceClusteredTexels, 0)[6..8].copy_from_slice(&3u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::ClusterIndex { index: 3, .. }))),
+        ("clustered texels short", |p| p.find(SectionKind::SurfaceClusteredTexels, 0).truncate(80), |e| matches!(e, FormatError::Invalid(ModelError::Length { .. }))),
+        ("flyaway nodes without heads", |p| p.sections.retain(|(e, _)| !(e.kind == SectionKind::FlyawayHeads as u32 && e.level == 1)), |e| matches!(e, FormatError::Section { level: 1, .. })),
+        ("flyaway head past the nodes", |p| p.find(SectionKind::FlyawayHeads, 1)[4 * 14..4 * 15].copy_from_slice(&1000u32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayLink { index: 1000, .. }))),
+        ("flyaway cycle", |p| p.find(SectionKind::FlyawayNodes, 1)[16..20].copy_from_slice(&0u32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayOrder { .. }))),
+        ("flyaway self loop", |p| p.find(SectionKind::FlyawayNodes, 1)[0..4].copy_from_slice(&0u32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayOrder { .. }))),
+        ("flyaway shared tail", |p| p.find(SectionKind::FlyawayHeads, 1)[0..4].copy_from_slice(&1u32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayShared { .. }))),
+        ("flyaway stray node", |p| p.find(SectionKind::FlyawayHeads, 1)[4 * 7..4 * 8].copy_from_slice(&NO_NODE.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayUnreached { .. }))),
+        ("flyaway zero alpha", |p| p.find(SectionKind::FlyawayNodes, 0)[6..8].copy_from_slice(&0u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { .. }))),
+        ("flyaway below the slab", |p| p.find(SectionKind::FlyawayNodes, 0)[4..6].copy_from_slice(&500u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { .. } | ModelError::FlyawayOrder { .. }))),
+        ("flyaway BRDF index past the table", |p| p.find(SectionKind::FlyawayNodes, 0)[12..16].copy_from_slice(&7u32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { .. }))),
+        ("META note past the end", |p| { let m = p.find(SectionKind::Meta, 0); let at = 48 + 4 * 4; m[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes()) }, |e| matches!(e, FormatError::Section { kind, .. } if kind == "META")),
+        ("META 2^31 fit errors", |p| p.find(SectionKind::Meta, 0)[36..40].copy_from_slice(&(1u32 << 31).to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "META")),
+        ("META NaN fit error", |p| p.find(SectionKind::Meta, 0)[48..52].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Meta(_)))),
+        ("META note not UTF-8", |p| { let m = p.find(SectionKind::Meta, 0); let n = m.len(); m[n - 1] = 0xff }, |e| matches!(e, FormatError::Section { kind, .. } if kind == "META")),
+    ];
+    for (name, edit, expect) in cases {
+        let mut parts = Parts::of(&sample_bytes());
+        edit(&mut parts);
+        let e = err(&parts.assemble());
+        assert!(expect(&e), "{name}: unexpected error {e:?}");
+    }
+    // The sample's level-1 flyaways: column (1, 1) = texel 1·6 + 1 = 7 holds nodes 0 → 1.
+    let m = sample();
+    let f = m.levels[1].flyaways.as_ref().unwrap();
+    assert_eq!((f.heads[7], f.nodes[0].next, f.nodes[1].next), (0, 1, NO_NODE));
+    assert!(matches!(m.levels[0].surface, Surface::Clustered { .. }));
+}
+
+/// Flips, overwrites, truncates and splices bytes at random. A read either fails with an
+/// error or returns the original model (a flip in inter-section padding is harmless);
+/// never a panic. With the CRCs recomputed, semantic damage must be caught too.
+fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
+    let good = sample_bytes();
+    let model = sample();
+    let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
+    let (mut rejected, mut accepted) = (0, 0);
+    for it in 0..iterations {
+        let mut b = good.clone();
+        let n = b.len() as u64;
+        let kind = rng.next_u64() % 6;
+        match kind {
+            0 => {
+                for _ in 0..1 + rng.next_u64() % 4 {
+                    let at = (rng.next_u64() % n) as usize;
+                    b[at] ^= 1 << (rng.next_u64() % 8);
+                }
+            }
+            1 => b.truncate((rng.next_u64() % n) as usize),
+            2 => {
+                let at = (rng.next_u64() % n) as usize;
+                let v = rng.next_u64().to_le_bytes();
+                for (k, x) in v.iter().enumerate() {
+                    if at + k < b.len() {
+                        b[at + k] = *x;
+                    }
+                }
+            }
+            3 => {
+                let (from, to) = ((rng.next_u64() % n) as usize, (rng.next_u64() % n) as usize);
+                let len = (rng.next_u64() % 64) as usize;
+                let chunk: Vec<u8> = b[from..(from + len).min(b.len())].to_vec();
+                b.splice(to..to, chunk);
+            }
+            // Semantic damage behind valid checksums: edit a section, re-seal.
+            _ => {
+                let mut parts = Parts::of(&good);
+                let s = (rng.next_u64() % parts.sections.len() as u64) as usize;
+                let data = &mut parts.sections[s].1;
+                if !data.is_empty() {
+                    for _ in 0..1 + rng.next_u64() % 3 {
+                        let at = (rng.next_u64() % data.len() as u64) as usize;
+                        data[at] = rng.next_u64() as u8;
+                    }
+                }
+                b = parts.assemble();
+            }
+        }
+        match format::read(&b) {
+            Err(e) => {
+                assert!(!e.to_string().is_empty());
+                rejected += 1;
+            }
+            Ok(m) => {
+                // Accepted: raw damage must have been harmless (inter-section padding);
+                // a re-sealed edit may change the model but must leave it valid.
+                if kind < 4 {
+                    assert!(m == model, "iteration {it}: damaged bytes read as a different model");
+                }
+                m.validate().unwrap_or_else(|e| panic!("iteration {it}: accepted an invalid model: {e}"));
+                accepted += 1;
+            }
+        }
+    }
+    (rejected, accepted)
+}
+
+#[test]
+fn quick_randomized_corruption() {
+    let (rejected, accepted) = randomized_corruption(3000, 1);
+    println!("3000 corrupted files: {rejected} rejected, {accepted} accepted (harmless or still-valid edits)");
+    assert!(rejected > 2000, "most corruptions must be caught: {rejected}");
+}
+
+/// The long run: `FABRIC_CORRUPTION_ITERS=1000000 cargo test -p fabric-runtime --test hybrid_format -- --ignored`.
+#[test]
+#[ignore]
+fn long_randomized_corruption() {
+    let iters = std::env::var("FABRIC_CORRUPTION_ITERS").ok().and_then(|v| v.parse().ok()).unwrap_or(200_000);
+    let t = std::time::Instant::now();
+    let (rejected, accepted) = randomized_corruption(iters, 0xc0ffee);
+    println!("{iters} corrupted files in {:.1?}: {rejected} rejected, {accepted} accepted", t.elapsed());
+}
+
+#[test]
+fn fuzz_seeds_are_current() {
+    // runtime/fuzz/seeds: valid files the fuzzers start from (runtime/fuzz/README.md).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
+    let params = examples::silk_params();
+    let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
+    let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
+    examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayVoxel { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small)] {
+        let bytes = format::to_bytes(&model).unwrap();
+        let path = dir.join(name);
+        if std::env::var_os("FABRIC_BLESS").is_some() {
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        let stored = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (write it with FABRIC_BLESS=1)", path.display()));
+        assert!(stored == bytes, "{} is stale: regenerate with FABRIC_BLESS=1", path.display());
+    }
+}
+
+#[test]
+fn synthetic_benchmark_models_are_valid_and_round_trip() {
+    let m = examples::synthetic_model(40, 3);
+    m.validate().unwrap();
+    assert!(m.has_flyaways() && m.levels.len() == 6);
+    // Downsampled flyaways: alpha is a fraction of 8^ℓ children.
+    let f3 = m.levels[3].flyaways.as_ref().unwrap();
+    assert!(f3.nodes.iter().all(|n| n.alpha() > 0.0 && n.alpha() <= 1.0));
+    assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap(), m);
+}

@@ -1,0 +1,286 @@
+// brdf.glsl — the cloth BRDF of the hybrid fabric model (Xu et al. 2019, Eqs. 1–3,
+// read as DESIGN.md §5). Self-contained: include it anywhere (GLSL 4.50, no extensions).
+//
+// Twin: runtime/src/brdf/mod.rs has the same functions, with the same names, in the same
+// order, and the same arithmetic. Change one, change the other. A test evaluates this
+// file on the GPU (shaders/brdf_eval.comp) against the Rust twin for 131 072 random and
+// extreme inputs (lavapipe: 99% agree within 1e-6 relative, all within 1e-4);
+// shaders/brdf_test_vectors.json pins both for ports. Keep cloth_atan2: built-in
+// asin/atan are vendor approximations that narrow lobes amplify.
+//
+// FRAME. A lobe lives in a shading frame (n, t, b = n x t): n the normal, t the fiber
+// tangent (an axis: t and -t give the same value), in the same space as the directions
+// (tile space for the hybrid model: x, y along the tile, z up, out of the cloth). All
+// directions point AWAY from the surface: wi toward the light, wo toward the viewer.
+//
+// ANGLES (radians). For a unit direction w:
+//   theta in [-pi/2, pi/2]: the angle from w to the normal plane, sin(theta) = dot(w, t);
+//   phi in (-pi, pi]: the signed angle of w's projection in the normal plane, measured
+//       from n: phi = atan(dot(w, b), dot(w, n)). Along t the projection vanishes and we
+//       define phi = 0 (cos phi = 1).
+// Mirror reflection about the normal plane has theta_o = -theta_i, so the lobes peak at
+// theta_i + theta_o = 0, and fall off with phi_i + phi_o.
+//
+// THE BRDF (our bounded reading of Eqs. 1-3; the printed Eq. 2 has no beta_j and a width
+// that shrinks without bound):
+//   f_r = k_d + F(eta, cos theta_d) * max(cos phi_i, 0)^a * sum_j k_j * S_j
+//   G(x; beta)  = exp(-x^2 / (2 beta^2)) / (sqrt(2 pi) beta)   (normalized over x)
+//   P(x; gamma) = exp(-x^2 / (2 gamma^2));  P = 1 for gamma <= 0 ("gamma = infinity")
+//   S_j = G(theta_i + theta_o; beta_j) * P(phi_i + phi_o; gamma_j)          reading 0, bounded
+//   S_j = G(theta_i + theta_o; max(beta_j * P(phi_i + phi_o; gamma_j), BETA_MIN))  reading 1, width
+// Both readings live here and only here (cloth_lobe_shape); a model file records which one
+// it was fitted with. F is the unpolarized dielectric Fresnel reflectance, fed with
+// cos theta_d, theta_d = (theta_o - theta_i) / 2 (cloth_fresnel_cos: the one place where
+// this is chosen; at the peak it equals the printed F(eta, theta_i)). max(cos phi_i, 0)^a
+// is Sadeghi et al.'s shadowing term, with 0^0 = 1 (a = 0 switches it off).
+//
+// UNITS AND RANGES. k_d and k_j are linear RGB; k_d carries no 1/pi. Parameters are
+// clamped before use, so any FINITE input gives a finite, non-negative result:
+//   k_d, k_j in [0, 65504]; eta in [1, 4]; a in [0, 1e4]; beta in [1e-3, 1e4];
+//   gamma <= 0 means off, else gamma in [1e-3, 1e4].
+// Degenerate frames are completed deterministically (cloth_frame). Inputs must not be
+// NaN (GLSL does not promise what min/max do with NaN); the model reader rejects NaN.
+//
+// WHAT A RENDERER OUTPUTS. Radiance toward wo under a light of irradiance E (perpendicular
+// to the beam) from wi: E * f_r * max(dot(n, wi), 0) (cloth_response). cloth_lobe gives
+// one lobe in its own frame, for texels whose lobes have different frames (coarse levels).
+
+#ifndef CLOTH_BRDF_GLSL
+#define CLOTH_BRDF_GLSL
+
+#define CLOTH_MAX_LOBES 8
+#define CLOTH_READING_BOUNDED 0u
+#define CLOTH_READING_WIDTH 1u
+
+const float CLOTH_BETA_MIN = 1e-3;
+const float CLOTH_BETA_MAX = 1e4;
+const float CLOTH_GAMMA_MIN = 1e-3;
+const float CLOTH_GAMMA_MAX = 1e4;
+const float CLOTH_K_MAX = 65504.0;
+const float CLOTH_ETA_MAX = 4.0;
+const float CLOTH_A_MAX = 1e4;
+const float CLOTH_EPS_LEN2 = 1e-20;  // below: a zero vector
+const float CLOTH_EPS_PERP2 = 1e-8;  // t within 1e-4 of parallel to n: degenerate
+const float CLOTH_EPS_PROJ2 = 1e-12; // projection on the normal plane vanishes: w along t
+const float CLOTH_INV_SQRT_2PI = 0.3989423;
+
+// One specular lobe: RGB strength k, theta width beta, phi falloff gamma (<= 0: off).
+struct ClothLobe {
+    vec3 k;
+    float beta;
+    float gamma;
+};
+
+// Eq. 1's parameters for lobes sharing one frame; the first lobe_count lobes are used.
+struct ClothParams {
+    vec3 kd;
+    float eta;
+    float a;
+    uint lobe_count;
+    ClothLobe lobes[CLOTH_MAX_LOBES];
+};
+
+struct ClothFrame {
+    vec3 n;
+    vec3 t;
+    vec3 b;
+};
+
+struct ClothAngles {
+    float sin_theta;
+    float cos_theta;
+    float theta;
+    float phi;
+    float cos_phi;
+};
+
+// A unit tangent perpendicular to unit n (Duff et al. 2017): completes degenerate frames,
+// and is the reference from which packed tangents measure their angle.
+vec3 cloth_reference_tangent(vec3 n) {
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float b = n.x * n.y * a;
+    return vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+}
+
+// Orthonormal frame of normal n and tangent t (neither need be unit); t is made
+// perpendicular to n (Gram-Schmidt, twice). Fallbacks: n ~ 0 -> +Z; t ~ 0 or t parallel to n -> reference tangent.
+ClothFrame cloth_frame(vec3 n, vec3 t) {
+    float n_len2 = dot(n, n);
+    n = n_len2 > CLOTH_EPS_LEN2 ? n * (1.0 / sqrt(n_len2)) : vec3(0.0, 0.0, 1.0);
+    float t_len2 = dot(t, t);
+    t = t_len2 > CLOTH_EPS_LEN2 ? t * (1.0 / sqrt(t_len2)) : vec3(0.0);
+    vec3 t_perp = t - n * dot(t, n);
+    float perp2 = dot(t_perp, t_perp);
+    if (perp2 > CLOTH_EPS_PERP2) {
+        // A second Gram-Schmidt pass: the first leaves dot(n, t) ~ eps / sin(n, t) when t
+        // is nearly parallel to n.
+        vec3 t1 = t_perp * (1.0 / sqrt(perp2));
+        vec3 t2 = t1 - n * dot(t1, n);
+        t = t2 * (1.0 / sqrt(dot(t2, t2)));
+    } else {
+        t = cloth_reference_tangent(n);
+    }
+    ClothFrame f;
+    f.n = n;
+    f.t = t;
+    f.b = cross(n, t);
+    return f;
+}
+
+// The frame of a flyaway fiber seen from wo (DESIGN.md section 5): t = the fiber axis,
+// n = wo made perpendicular to t (the fiber seen side-on), b = n x t. Fallbacks:
+// fiber ~ 0 -> +X; wo parallel to t -> n = cloth_reference_tangent(t).
+ClothFrame cloth_fiber_frame(vec3 fiber, vec3 wo) {
+    float f_len2 = dot(fiber, fiber);
+    vec3 t = f_len2 > CLOTH_EPS_LEN2 ? fiber * (1.0 / sqrt(f_len2)) : vec3(1.0, 0.0, 0.0);
+    vec3 n_raw = wo - t * dot(wo, t);
+    float n_len2 = dot(n_raw, n_raw);
+    vec3 n = n_len2 > CLOTH_EPS_PROJ2 ? n_raw * (1.0 / sqrt(n_len2)) : cloth_reference_tangent(t);
+    ClothFrame f;
+    f.n = n;
+    f.t = t;
+    f.b = cross(n, t);
+    return f;
+}
+
+// atan2(y, x) in (-pi, pi], computed the same way in both twins (Cephes' atanf on
+// min/max of |x|, |y|, relative error ~2e-7): GPUs' built-in inverse trigonometry is an
+// approximation of their own (lavapipe's asin is off by up to 3.9e-4 rad, its atan by
+// 3e-6), which narrow lobes (beta ~ 0.005) amplify a hundredfold. atan2(0, 0) = 0; the
+// sign of a zero y is ignored (atan2(-0, -1) = pi).
+float cloth_atan2(float y, float x) {
+    float ax = abs(x);
+    float ay = abs(y);
+    float hi = max(ax, ay);
+    float lo = min(ax, ay);
+    float r = hi > 0.0 ? lo / hi : 0.0;
+    // r in [0, 1]; above tan(pi/8) reduce with atan r = pi/4 + atan((r - 1)/(r + 1)).
+    float base = 0.0;
+    if (r > 0.41421357) {
+        base = 0.78539819;
+        r = (r - 1.0) / (r + 1.0);
+    }
+    float z = r * r;
+    float a = base + ((((8.0537445e-2 * z - 1.3877686e-1) * z + 1.9977711e-1) * z - 3.333295e-1) * z * r + r);
+    if (ay > ax) {
+        a = 1.5707964 - a;
+    }
+    if (x < 0.0) {
+        a = 3.1415927 - a;
+    }
+    return y < 0.0 ? -a : a;
+}
+
+// theta and phi of unit direction w in frame f.
+ClothAngles cloth_angles(ClothFrame f, vec3 w) {
+    ClothAngles r;
+    r.sin_theta = clamp(dot(w, f.t), -1.0, 1.0);
+    r.cos_theta = sqrt(max(1.0 - r.sin_theta * r.sin_theta, 0.0));
+    // theta = asin(sin theta), through the twins' own arctangent (see cloth_atan2).
+    r.theta = cloth_atan2(r.sin_theta, r.cos_theta);
+    float x = dot(w, f.n);
+    float y = dot(w, f.b);
+    float r2 = x * x + y * y;
+    if (r2 > CLOTH_EPS_PROJ2) {
+        r.phi = cloth_atan2(y, x);
+        r.cos_phi = x * (1.0 / sqrt(r2));
+    } else {
+        r.phi = 0.0;
+        r.cos_phi = 1.0;
+    }
+    return r;
+}
+
+// Unpolarized dielectric Fresnel reflectance, relative index eta, incidence cosine cos_i.
+float cloth_fresnel(float eta, float cos_i) {
+    eta = min(max(eta, 1.0), CLOTH_ETA_MAX);
+    float c = min(max(cos_i, 0.0), 1.0);
+    float sin2_t = (1.0 - c * c) / (eta * eta);
+    float cos_t = sqrt(max(1.0 - sin2_t, 0.0));
+    float rs = (c - eta * cos_t) / max(c + eta * cos_t, 1e-30);
+    float rp = (eta * c - cos_t) / max(eta * c + cos_t, 1e-30);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// The cosine fed to the Fresnel term: cos theta_d, theta_d = (theta_o - theta_i) / 2,
+// computed as sqrt((1 + cos(theta_o - theta_i)) / 2) since |theta_d| <= pi/2.
+float cloth_fresnel_cos(ClothAngles wi, ClothAngles wo) {
+    float cos_diff = wo.cos_theta * wi.cos_theta + wo.sin_theta * wi.sin_theta;
+    return sqrt(max(0.5 * (1.0 + cos_diff), 0.0));
+}
+
+// max(cos phi_i, 0)^a with 0^0 = 1.
+float cloth_shadowing(float cos_phi_i, float a) {
+    a = min(max(a, 0.0), CLOTH_A_MAX);
+    if (a <= 0.0) {
+        return 1.0;
+    }
+    if (cos_phi_i <= 0.0) {
+        return 0.0;
+    }
+    return pow(min(cos_phi_i, 1.0), a);
+}
+
+// G(x; beta), beta clamped to [BETA_MIN, BETA_MAX].
+float cloth_gaussian(float x, float beta) {
+    beta = min(max(beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
+    return exp(-(x * x) / (2.0 * beta * beta)) * (CLOTH_INV_SQRT_2PI / beta);
+}
+
+// P(x; gamma); 1 for gamma <= 0 (gamma = infinity).
+float cloth_phi_falloff(float x, float gamma) {
+    if (!(gamma > 0.0)) {
+        return 1.0;
+    }
+    gamma = min(max(gamma, CLOTH_GAMMA_MIN), CLOTH_GAMMA_MAX);
+    return exp(-(x * x) / (2.0 * gamma * gamma));
+}
+
+// S_j at theta_i + theta_o = theta_sum, phi_i + phi_o = phi_sum: where the readings differ.
+float cloth_lobe_shape(float theta_sum, float phi_sum, float beta, float gamma, uint reading) {
+    if (reading == CLOTH_READING_WIDTH) {
+        beta = min(max(beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
+        return cloth_gaussian(theta_sum, max(beta * cloth_phi_falloff(phi_sum, gamma), CLOTH_BETA_MIN));
+    }
+    return cloth_gaussian(theta_sum, beta) * cloth_phi_falloff(phi_sum, gamma);
+}
+
+// sum_j k_j * S_j over the lobes in use (Eq. 2).
+vec3 cloth_specular(ClothParams p, ClothAngles wi, ClothAngles wo, uint reading) {
+    float theta_sum = wi.theta + wo.theta;
+    float phi_sum = wi.phi + wo.phi;
+    vec3 sum = vec3(0.0);
+    uint count = min(p.lobe_count, uint(CLOTH_MAX_LOBES));
+    for (uint j = 0u; j < count; ++j) {
+        vec3 k = min(max(p.lobes[j].k, vec3(0.0)), vec3(CLOTH_K_MAX));
+        sum += k * cloth_lobe_shape(theta_sum, phi_sum, p.lobes[j].beta, p.lobes[j].gamma, reading);
+    }
+    return sum;
+}
+
+// f_r(wi, wo) of Eq. 1 for lobes sharing frame f. RGB, finite, >= 0.
+vec3 cloth_brdf(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
+    ClothAngles ai = cloth_angles(f, wi);
+    ClothAngles ao = cloth_angles(f, wo);
+    vec3 kd = min(max(p.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    float fresnel = cloth_fresnel(p.eta, cloth_fresnel_cos(ai, ao));
+    return kd + cloth_specular(p, ai, ao, reading) * (fresnel * cloth_shadowing(ai.cos_phi, p.a));
+}
+
+// One lobe in its own frame f with Eq. 1's Fresnel and shadowing factors, without k_d:
+// F * max(cos phi_i, 0)^a * k * S. With a shared frame, k_d + sum_j cloth_lobe = cloth_brdf.
+vec3 cloth_lobe(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
+    ClothAngles ai = cloth_angles(f, wi);
+    ClothAngles ao = cloth_angles(f, wo);
+    float fresnel = cloth_fresnel(eta, cloth_fresnel_cos(ai, ao));
+    vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
+    return k * (cloth_lobe_shape(ai.theta + ao.theta, ai.phi + ao.phi, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(ai.cos_phi, a));
+}
+
+// Outgoing radiance per unit irradiance, lobes sharing frame f: f_r * max(dot(n, wi), 0).
+vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
+    return cloth_brdf(p, f, wi, wo, reading) * max(dot(f.n, wi), 0.0);
+}
+
+#endif // CLOTH_BRDF_GLSL

@@ -1,0 +1,91 @@
+//! `fabric diff A B`: how far image A is from reference B (../shared/DESIGN.md §9):
+//! relative RMSE over linear RGB, mean per-pixel relative difference, relative
+//! difference of the image means, and FLIP on the sRGB(clamp(exposure·L)) 8-bit images.
+//! Optionally writes the FLIP error map in false colour (magma).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use fabric_runtime::image::Image;
+use fabric_runtime::metrics;
+
+#[derive(Args, Debug)]
+pub struct DiffArgs {
+    /// Test image (.exr linear, or .png sRGB).
+    pub a: PathBuf,
+    /// Reference image, same size.
+    pub b: PathBuf,
+    /// Exposure of the tone mapping used for FLIP (and to undo PNG encoding).
+    #[arg(long, default_value_t = 1.0)]
+    pub exposure: f32,
+    /// Print the metrics as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the FLIP error map (magma colour scale) as a PNG.
+    #[arg(long)]
+    pub diff_image: Option<PathBuf>,
+}
+
+#[derive(serde::Serialize)]
+struct Report {
+    test: String,
+    reference: String,
+    width: u32,
+    height: u32,
+    relative_rmse: f64,
+    mean_relative_difference: f64,
+    relative_mean_difference: f64,
+    mean_test: f64,
+    mean_reference: f64,
+    flip_mean: f32,
+    flip_p95: f32,
+    flip_max: f32,
+    exposure: f32,
+}
+
+pub fn run(args: DiffArgs) -> Result<()> {
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!("--exposure must be a positive finite number, got {}", args.exposure);
+    }
+    let a = Image::read(&args.a, args.exposure).with_context(|| format!("cannot read test image {}", args.a.display()))?;
+    let b = Image::read(&args.b, args.exposure).with_context(|| format!("cannot read reference image {}", args.b.display()))?;
+    let what = || format!("comparing {} with {}", args.a.display(), args.b.display());
+    let flip = metrics::flip(&a, &b, args.exposure).with_context(what)?;
+    let report = Report {
+        test: args.a.display().to_string(),
+        reference: args.b.display().to_string(),
+        width: a.width,
+        height: a.height,
+        relative_rmse: metrics::relative_rmse(&a, &b).with_context(what)?,
+        mean_relative_difference: metrics::mean_relative_difference(&a, &b).with_context(what)?,
+        relative_mean_difference: metrics::relative_mean_difference(&a, &b).with_context(what)?,
+        mean_test: a.mean(),
+        mean_reference: b.mean(),
+        flip_mean: flip.mean,
+        flip_p95: flip.p95,
+        flip_max: flip.max,
+        exposure: args.exposure,
+    };
+    if let Some(path) = &args.diff_image {
+        if path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()) != Some("png".into()) {
+            bail!("--diff-image {}: the error map is written as PNG; use a .png name", path.display());
+        }
+        let rgb = flip.error_map_rgb8();
+        let decoded: Vec<glam::Vec3> = rgb.chunks_exact(3).map(|c| glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) / 255.0).map(|c| c.to_array().map(fabric_runtime::image::srgb_decode).into()).collect();
+        Image { width: flip.width, height: flip.height, pixels: decoded }.write(path, 1.0).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!("{} vs reference {} ({}x{})", report.test, report.reference, report.width, report.height);
+        println!("  relative RMSE               {:.6}", report.relative_rmse);
+        println!("  mean relative difference    {:.6}", report.mean_relative_difference);
+        println!("  relative difference of means {:+.6} (means {:.6} vs {:.6})", report.relative_mean_difference, report.mean_test, report.mean_reference);
+        println!("  FLIP (exposure {})          mean {:.5}, p95 {:.5}, max {:.5}", report.exposure, report.flip_mean, report.flip_p95, report.flip_max);
+        if let Some(p) = &args.diff_image {
+            println!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,141 @@
+//! `fabric render MODEL.hyb --backend cpu`: the CPU renderer of hybrid models
+//! (`fabric_runtime::cpu`). The lead wires it into `fabric render`: flatten
+//! [`CpuRenderFlags`] into `RenderArgs` and call [`run`] for `--backend cpu`.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, ShadowMode, render_with_progress};
+use fabric_runtime::hybrid::format::read_file;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::args::{CameraArgs, LightArgs, OutputArgs};
+
+/// Flags of the CPU backend (the camera, light and output flags are the shared ones).
+#[derive(Args, Clone, Debug)]
+pub struct CpuRenderFlags {
+    /// Level of the mip chain: "auto" (from each pixel's footprint) or a level number.
+    #[arg(long, default_value = "auto", value_parser = parse_level)]
+    pub level: LevelFlag,
+    /// Added to log2 of the footprint with --level auto (positive: coarser).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub level_bias: f32,
+    /// Repeat the tile forever in x and y (matches `fabric reference --periodic`).
+    #[arg(long)]
+    pub periodic: bool,
+    /// Height-field shadowing: "model" (as the model was fitted), "on" or "off".
+    #[arg(long, default_value = "model", value_parser = ["model", "on", "off"])]
+    pub shadows: String,
+    /// s×s camera rays per pixel on a regular grid (1..=16).
+    #[arg(long, default_value_t = 1)]
+    pub supersample: u32,
+    /// Height-field traversal steps per ray before giving up.
+    #[arg(long, default_value_t = 4096)]
+    pub max_steps: u32,
+}
+
+/// `--level auto` or `--level N`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LevelFlag {
+    Auto,
+    Fixed(u32),
+}
+
+fn parse_level(s: &str) -> Result<LevelFlag, String> {
+    if s == "auto" {
+        return Ok(LevelFlag::Auto);
+    }
+    s.parse().map(LevelFlag::Fixed).map_err(|_| format!("expected 'auto' or a level number, got '{s}'"))
+}
+
+impl CpuRenderFlags {
+    pub fn options(&self) -> CpuRenderOptions {
+        CpuRenderOptions {
+            level: match self.level {
+                LevelFlag::Auto => LevelChoice::Auto { bias: self.level_bias },
+                LevelFlag::Fixed(n) => LevelChoice::Fixed(n),
+            },
+            periodic: self.periodic,
+            shadows: match self.shadows.as_str() {
+                "on" => ShadowMode::On,
+                "off" => ShadowMode::Off,
+                _ => ShadowMode::FromModel,
+            },
+            supersampling: self.supersample,
+            max_steps: self.max_steps,
+            ..Default::default()
+        }
+    }
+}
+
+/// Renders `model_path` with the CPU renderer and writes the image.
+pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags) -> Result<()> {
+    output.validate()?;
+    let model = read_file(model_path)?;
+    // The default framing and --view-angles aim at the model's box: the tile's x–y box
+    // from the top plane down through the depth range, i.e. the source volume's box.
+    let camera = camera.camera(model.bounds())?;
+    let light = light.light()?;
+    let options = flags.options();
+    if options.shadows == ShadowMode::FromModel {
+        println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
+    } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {
+        println!("note: the model was fitted {} height-field shadowing; rendering {} it", if model.meta.fitted_with_shadowing { "with" } else { "without" }, if options.shadows == ShadowMode::On { "with" } else { "without" });
+    }
+    let bar = ProgressBar::new(camera.height as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} (eta {eta})").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    let start = std::time::Instant::now();
+    let (image, stats) = render_with_progress(&model, &camera, &[light], &options, &|| bar.inc(1)).with_context(|| format!("cannot render {}", model_path.display()))?;
+    let elapsed = start.elapsed();
+    bar.finish_and_clear();
+    image.write(&output.out, output.exposure)?;
+    let rays = stats.pixels * (options.supersampling as u64).pow(2);
+    println!(
+        "{}: {}x{} on the CPU ({} threads) in {:.2?}, {:.2} Mrays/s; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}",
+        model_path.display(),
+        camera.width,
+        camera.height,
+        rayon::current_num_threads(),
+        elapsed,
+        rays as f64 / elapsed.as_secs_f64().max(1e-9) / 1e6,
+        stats.tile_pixels,
+        stats.surface_pixels,
+        stats.flyaway_pixels,
+        stats.level_pixels
+    );
+    if stats.step_limited_pixels > 0 || stats.step_limited_shadow_rays > 0 {
+        println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", stats.step_limited_pixels, stats.step_limited_shadow_rays, options.max_steps);
+    }
+    println!("wrote {}", output.out.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fabric_runtime::hybrid::{examples, format};
+
+    #[test]
+    fn renders_a_model_file_and_reports_bad_flags() {
+        let dir = std::env::temp_dir().join(format!("fabric-render-cpu-{}", std::process::id()));
+        let model = dir.join("m.hyb");
+        format::write_file(&examples::sample_model(), &model).unwrap();
+        let camera = CameraArgs { view_angles: Some((30.0, -90.0)), size: (32, 24), up: glam::Vec3::Z, ..Default::default() };
+        let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
+        let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
+        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096 };
+        run(&model, &camera, &light, &output, &flags).unwrap();
+        let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
+        assert_eq!((image.width, image.height), (32, 24));
+        assert!(image.mean() > 0.0);
+        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { level: LevelFlag::Fixed(9), ..flags.clone() }).unwrap_err();
+        assert!(format!("{err:#}").contains("level 9 does not exist"), "{err:#}");
+        let err = run(&dir.join("missing.hyb"), &camera, &light, &output, &flags).unwrap_err();
+        assert!(format!("{err:#}").contains("missing.hyb"), "{err:#}");
+        assert_eq!(parse_level("auto"), Ok(LevelFlag::Auto));
+        assert_eq!(parse_level("3"), Ok(LevelFlag::Fixed(3)));
+        assert!(parse_level("-1").is_err());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,84 @@
+//! `fabric reference` and `fabric diff` end to end.
+
+use std::process::Command;
+
+use fabric_baker::volume::{Aabb, FabricVolume, MaterialParams, Voxel, save_fabric};
+use fabric_runtime::image::Image;
+use glam::Vec3;
+
+fn fabric() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_fabric"))
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("reference_cli");
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A 12×12×4 slab of fibers along x, written as a fabric directory.
+fn tiny_fabric() -> std::path::PathBuf {
+    let dir = tmp("tiny");
+    let mut v = FabricVolume::new([12, 12, 4], Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.25)), MaterialParams { density_scale: 8.0, roughness: 0.3 });
+    for z in 1..4 {
+        for y in 0..12 {
+            for x in 0..12 {
+                if (x + y) % 3 != 0 {
+                    v.set(x, y, z, Voxel::pack(1.0, Vec3::new(0.9, 0.7, 0.5), Vec3::X));
+                }
+            }
+        }
+    }
+    save_fabric(&v, &dir).unwrap();
+    dir
+}
+
+#[test]
+fn reference_renders_deterministically_and_diff_measures_it() {
+    let dir = tiny_fabric();
+    let run = |out: &std::path::Path, threads: &str, seed: &str| {
+        let o = fabric()
+            .args(["reference"])
+            .arg(&dir)
+            .args(["--view-angles", "30,20", "--light-angles", "40,-60", "--size", "24x24", "--spp", "8", "--json", "--threads", threads, "--seed", seed, "--out"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(report["paths"], 24 * 24 * 8);
+        assert!(report["paths_per_second"].as_f64().unwrap() > 0.0);
+        Image::read(out, 1.0).unwrap()
+    };
+    let (a, b, c) = (tmp("a.exr"), tmp("b.exr"), tmp("c.exr"));
+    let (ia, ib, ic) = (run(&a, "1", "7"), run(&b, "2", "7"), run(&c, "2", "8"));
+    assert_eq!(ia, ib, "same seed, different thread counts");
+    assert_ne!(ia, ic);
+    assert!(ia.mean() > 0.0);
+    let o = fabric().arg("diff").arg(&a).arg(&c).args(["--json", "--diff-image"]).arg(tmp("d.png")).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rel = r["relative_rmse"].as_f64().unwrap();
+    assert!(rel > 0.0 && rel < 2.0, "{r}");
+    assert!(r["flip_mean"].as_f64().unwrap() > 0.0);
+    assert!(Image::read(&tmp("d.png"), 1.0).is_ok());
+    let o = fabric().arg("diff").arg(&a).arg(&b).arg("--json").output().unwrap();
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["relative_rmse"].as_f64().unwrap(), 0.0);
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let dir = tiny_fabric();
+    for (args, needle) in [
+        (vec!["reference", "/nonexistent/fabric", "--out", "/tmp/x.exr"], "/nonexistent/fabric"),
+        (vec!["reference", dir.to_str().unwrap(), "--spp", "0", "--out", "/tmp/x.exr"], "samples per pixel"),
+        (vec!["reference", dir.to_str().unwrap(), "--max-depth", "0", "--out", "/tmp/x.exr"], "max depth"),
+        (vec!["diff", "/nonexistent/a.exr", "/nonexistent/b.exr"], "/nonexistent/a.exr"),
+    ] {
+        let o = fabric().args(&args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(needle) && !stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
