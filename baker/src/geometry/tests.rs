@@ -404,3 +404,28 @@ fn columns_without_a_thick_run_take_the_surface_of_their_neighbours_or_are_holes
     assert_eq!(g.flyaways.len(), 4 * 32);
     assert!(g.flyaways.voxels.iter().all(|v| v.z == 18 && (50..54).contains(&v.x)));
 }
+
+#[test]
+fn every_generator_preset_gives_valid_maps() {
+    use crate::generate::{Preset, generate};
+    for preset in Preset::ALL {
+        let vol = generate(&preset.params(), [96, 96, 24], 1).unwrap();
+        let g = extract(&vol);
+        check_invariants(&g);
+        let name = preset.name();
+        // The geometry is a surface with a thin layer above: V is a small part of the
+        // fabric (2–7% of all voxels on these presets, 1 in 6 non-empty at most) and
+        // holes through it are rare (< 1% of columns on these presets).
+        let non_empty = vol.voxels().iter().filter(|v| v.density() > g.density.threshold).count();
+        assert!(g.flyaways.len() * 6 < non_empty, "{name}: {} flyaway voxels of {non_empty}", g.flyaways.len());
+        assert!(g.hole_columns * 50 < g.texels(), "{name}: {} holes", g.hole_columns);
+        // Fibers span 1–4 voxels at this resolution (generate/presets.rs).
+        assert!((0.8..5.0).contains(&g.fiber_thickness), "{name}: fiber thickness {}", g.fiber_thickness);
+        // Weaves show their yarn period; the felt has none.
+        match preset {
+            Preset::Plain | Preset::Twill => assert!(g.filter_auto, "{name}: peaks {:?}", g.autocorrelation_peaks),
+            Preset::Felt => assert!(!g.filter_auto, "{name}: peaks {:?}", g.autocorrelation_peaks),
+            _ => {}
+        }
+    }
+}
