@@ -51,6 +51,7 @@ fn sinusoidal_surface_gives_h0_and_the_filter_size() {
     // top cell filled below the 5% threshold counts as empty (≤ 0.05 voxel), plus f16
     // rounding of densities (≤ 2⁻¹¹ per cell). The issue asks for half a voxel.
     let worst = g.h0.iter().zip(&truth).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    eprintln!("sinusoid: worst h0 error {worst:.4} voxels, filter size {:?} (periods 32, 24)", g.filter_size);
     assert!(worst <= 0.06, "worst h0 error {worst} voxels");
     assert_eq!(g.hole_columns, 0);
     assert_eq!(g.clipped_columns, 0);
@@ -156,6 +157,7 @@ fn flyaway_strands_above_a_body_are_all_found_and_nothing_else() {
     let mut d: Vec<f32> = g.flyaways.voxels.iter().map(|v| v.fiber_diameter).collect();
     d.sort_by(f32::total_cmp);
     let median = d[d.len() / 2];
+    eprintln!("strands (d = 2): fiber thickness {:.3}, median flyaway diameter {median:.3}, {} flyaway voxels", g.fiber_thickness, g.flyaways.len());
     assert!((median - 2.0).abs() < 0.3, "median flyaway diameter {median}");
     // Each flyaway voxel keeps its strand's orientation (axes: compare |cos|).
     for v in &g.flyaways.voxels {
@@ -188,6 +190,7 @@ fn tangents_follow_a_known_orientation_field_regardless_of_fiber_sign() {
             worst = worst.max(g.tangents[i + 64 * j].angle_between(want));
         }
     }
+    eprintln!("orientation field: worst tangent error {:.4}°", worst.to_degrees());
     assert!(worst.to_degrees() < 0.1, "worst tangent error {}°", worst.to_degrees());
 }
 
