@@ -7,7 +7,7 @@
 //!
 //! with h periodic. By the Wiener–Khinchin theorem C0 is the inverse FFT along x of the
 //! row power spectra summed over rows (and C1 likewise along y), O(n log n) per row.
-//! We subtract h's mean first and divide by C[0]: that adds a constant and scales, so
+//! We subtract h's mean first and divide by `C[0]`: that adds a constant and scales, so
 //! the peaks stay where Eq. 4 puts them, and the curves become correlation coefficients
 //! in [−1, 1] that thresholds can be stated in.
 //!
@@ -96,7 +96,7 @@ impl PeakSearch {
     }
 }
 
-/// C0 and C1 of the periodic `nx × ny` map `h` (x fastest), normalized to C[0] = 1.
+/// C0 and C1 of the periodic `nx × ny` map `h` (x fastest), normalized to `C[0] = 1`.
 /// `None` when h is flat (no variation to correlate).
 pub fn autocorrelate(h: &[f32], nx: usize, ny: usize) -> Option<Autocorrelation> {
     let mean = h.iter().map(|&v| v as f64).sum::<f64>() / h.len() as f64;
@@ -172,11 +172,11 @@ fn line_autocorrelation(data: &[f64], n: usize, lines: usize) -> Vec<f64> {
 /// Smallest periodic contrast of a peak, as a fraction of C's range ([`first_peak`]).
 const MIN_CONTRAST: f32 = 0.05;
 
-/// The first robust peak of a normalized periodic autocorrelation `c` (c[0] = 1), in
+/// The first robust peak of a normalized periodic autocorrelation `c` (`c[0] = 1`), in
 /// texels with sub-texel precision, or `None` for unpatterned input. `null_sd` is the
 /// standard error of C under the random-field null hypothesis (module docs).
 ///
-/// Searches lags P in [min_lag, n/2] (C is symmetric, C[x] = C[n − x]) for a local
+/// Searches lags P in [min_lag, n/2] (C is symmetric, `C[x] = C[n − x]`) for a local
 /// maximum with C > 0 that passes two tests:
 /// - it is a feature of the curve: its prominence (as in topography: height above the
 ///   higher of the lowest points on the way to higher ground on either side) is at least

@@ -219,7 +219,7 @@ pub(crate) fn detailed_height(volume: &FabricVolume, density: &DensityScale, run
 /// L + fiber/2 (a thin yarn edge or a gap-riddled felt column at the level of its
 /// neighbours belongs to the surface; material higher up is V). With no material there
 /// the column is a hole through the fabric: h0 = 0.
-pub(crate) fn fill_holes(volume: &FabricVolume, density: &DensityScale, hm: &mut HeightMap, fiber_thickness: f32, sigma: f32) {
+pub fn fill_holes(volume: &FabricVolume, density: &DensityScale, hm: &mut HeightMap, fiber_thickness: f32, sigma: f32) {
     let [nx, ny, nz] = volume.dims();
     if hm.hole_columns == 0 || hm.hole_columns == nx * ny {
         return;
@@ -267,7 +267,7 @@ fn surface_height(volume: &FabricVolume, density: &DensityScale, i: usize, j: us
 }
 
 /// Cells at the top of a surface run that the sub-voxel height looks at.
-const SUBVOXEL_CELLS: usize = 3;
+pub const SUBVOXEL_CELLS: usize = 3;
 
 /// h0 of a run whose top cell is `zt`, from the densities of its top cells (`profile[k]`
 /// = ρ at zt − k; 0 past the run's end), by volume-preserving partial-volume coverage:
@@ -283,7 +283,7 @@ const SUBVOXEL_CELLS: usize = 3;
 /// the surface's transition, and ends the sum (porous tops fall back to zt + c_0).
 /// Exact for any surface that is a height field within the column and crosses at most
 /// `SUBVOXEL_CELLS` cells.
-pub(crate) fn subvoxel_height(zt: usize, profile: &[f32; SUBVOXEL_CELLS]) -> f32 {
+pub fn subvoxel_height(zt: usize, profile: &[f32; SUBVOXEL_CELLS]) -> f32 {
     let rho_ref = profile.iter().copied().fold(0.0, f32::max);
     if !(rho_ref > 0.0) {
         return zt as f32 + 1.0;

@@ -7,8 +7,9 @@
 //!   (index i + nx·j). All maps are periodic in x and y, as the sample is.
 //! - Heights are in voxel units along z, measured up from the volume's bottom face and
 //!   continuous: cell z spans [z, z + 1], so the top face of cell z is at z + 1 and a
-//!   fully filled column of nz cells has height nz. A column with no surface (a hole
-//!   between yarns) has h0 = 0, the bottom face.
+//!   fully filled column of nz cells has height nz. A column without a run thicker than
+//!   a fiber finds its surface at its neighbours' level ([`heightmap::fill_holes`]); one
+//!   with no material there is a hole through the fabric: h0 = 0, the bottom face.
 //! - Normals and tangents are unit vectors in the volume's world frame (x̂, ŷ, ẑ), slopes
 //!   measured in world units (the voxel size may differ per axis).
 //! - "Non-empty" means ρ > the density threshold ([`DensityThreshold`]); fiber
@@ -247,7 +248,7 @@ pub struct Geometry {
     pub filter_auto: bool,
     /// First autocorrelation peak [C0, C1] in texels, if any.
     pub autocorrelation_peaks: [Option<f32>; 2],
-    /// Normalized autocorrelations C0 (along x) and C1 (along y), C[0] = 1 (Eq. 4).
+    /// Normalized autocorrelations C0 (along x) and C1 (along y), `C[0] = 1` (Eq. 4).
     pub autocorrelation: [Vec<f32>; 2],
     /// One fiber's thickness in voxels.
     pub fiber_thickness: f32,
