@@ -62,23 +62,20 @@ fn bad_flags_are_rejected_with_a_message() {
 struct Xvfb(std::process::Child, String);
 
 impl Xvfb {
+    /// Starts Xvfb on a display number it picks itself (`-displayfd`), so parallel
+    /// test runs never clash over a display.
     fn start() -> Xvfb {
-        let display = format!(":{}", 100 + std::process::id() % 400);
-        let child = Command::new("Xvfb")
-            .args([display.as_str(), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-            .stdout(std::process::Stdio::null())
+        use std::io::BufRead;
+        let mut child = Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::null())
             .spawn()
             .expect("Xvfb is needed for window tests (apt-get install xvfb; README's set-up installs it)");
-        // Wait for the server's socket.
-        let sock = format!("/tmp/.X11-unix/X{}", &display[1..]);
-        for _ in 0..100 {
-            if std::path::Path::new(&sock).exists() {
-                break;
-            }
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        }
-        Xvfb(child, display)
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb printed '{line}' instead of its display number"));
+        Xvfb(child, format!(":{n}"))
     }
 }
 
