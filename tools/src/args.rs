@@ -75,6 +75,21 @@ pub struct CameraArgs {
     pub size: (u32, u32),
 }
 
+/// What the GPU draws when no hybrid model is given: a base mesh with a checker
+/// texture, and the device to draw it on.
+#[derive(Args, Clone, Debug)]
+pub struct MeshSceneArgs {
+    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file.
+    #[arg(long, default_value = "sphere")]
+    pub mesh: String,
+    /// Colour multiplying the mesh's checker texture (V or R,G,B, linear).
+    #[arg(long, value_parser = parse_rgb, default_value = "1")]
+    pub base_color: Vec3,
+    /// Vulkan device to use (substring of its name; see `fabric devices`).
+    #[arg(long)]
+    pub device: Option<String>,
+}
+
 #[derive(Args, Clone, Debug, Default)]
 pub struct LightArgs {
     /// Directional light: direction *toward* the light.

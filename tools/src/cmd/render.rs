@@ -7,10 +7,9 @@ use clap::Args;
 use fabric_runtime::gpu::MeshPass;
 use fabric_runtime::scene::Mesh;
 use fabric_runtime::vk::{Device, DeviceOptions};
-use glam::Vec3;
 
 use super::render_cpu::CpuRenderFlags;
-use crate::args::{CameraArgs, LightArgs, OutputArgs, parse_rgb};
+use crate::args::{CameraArgs, LightArgs, MeshSceneArgs, OutputArgs};
 
 /// Which renderer draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -31,15 +30,8 @@ pub struct RenderArgs {
     /// Renderer.
     #[arg(long, value_enum, default_value = "auto")]
     pub backend: Backend,
-    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file.
-    #[arg(long, default_value = "sphere")]
-    pub mesh: String,
-    /// Colour multiplying the mesh's checker texture (V or R,G,B, linear).
-    #[arg(long, value_parser = parse_rgb, default_value = "1")]
-    pub base_color: Vec3,
-    /// Vulkan device to use (substring of its name; see `fabric devices`).
-    #[arg(long)]
-    pub device: Option<String>,
+    #[command(flatten)]
+    pub scene: MeshSceneArgs,
     /// Frames to render; the GPU time reported is the median (the first frame pays
     /// for shader JIT on lavapipe).
     #[arg(long, default_value_t = 3)]
@@ -68,17 +60,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.backend == Backend::Cpu {
         anyhow::bail!("--backend cpu renders hybrid models (give MODEL.hyb); meshes are drawn on the GPU");
     }
-    let mesh = Mesh::by_name(&args.mesh)?;
+    let mesh = Mesh::by_name(&args.scene.mesh)?;
     let camera = args.camera.camera(mesh.bounds())?;
     let light = args.light.light()?;
-    let device = Device::new(&DeviceOptions { name: args.device.clone(), ..Default::default() }).context("cannot open a Vulkan device")?;
+    let device = Device::new(&DeviceOptions { name: args.scene.device.clone(), ..Default::default() }).context("cannot open a Vulkan device")?;
     let info = device.info();
     println!("device: {} ({}, driver {})", info.name, info.kind, info.driver);
     let pass = MeshPass::new(&device)?;
     let mut times = Vec::new();
     let mut frame = None;
     for _ in 0..args.repeat.max(1) {
-        let f = pass.render(&mesh, &camera, &light, args.base_color)?;
+        let f = pass.render(&mesh, &camera, &light, args.scene.base_color)?;
         times.push(f.gpu_ms);
         frame = Some(f);
     }
@@ -91,7 +83,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     times.sort_by(f64::total_cmp);
     println!(
         "mesh '{}' ({} triangles) at {}x{}: GPU frame time {:.3} ms (median of {}, min {:.3} ms) on {}",
-        args.mesh,
+        args.scene.mesh,
         mesh.indices.len() / 3,
         camera.width,
         camera.height,

@@ -24,19 +24,12 @@ use winit::keyboard::{Key, NamedKey};
 use winit::raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use winit::window::{Window, WindowId};
 
-use crate::args::{CameraArgs, LightArgs, parse_rgb};
+use crate::args::{CameraArgs, LightArgs, MeshSceneArgs};
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
-    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file.
-    #[arg(long, default_value = "sphere")]
-    pub mesh: String,
-    /// Colour multiplying the mesh's checker texture (V or R,G,B, linear).
-    #[arg(long, value_parser = parse_rgb, default_value = "1")]
-    pub base_color: Vec3,
-    /// Vulkan device to use (substring of its name).
-    #[arg(long)]
-    pub device: Option<String>,
+    #[command(flatten)]
+    pub scene: MeshSceneArgs,
     /// Exposure of the sRGB display mapping.
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
@@ -109,7 +102,7 @@ impl Viewer {
             .context("cannot open a window (is DISPLAY set? for headless use: Xvfb :99 & DISPLAY=:99)")?;
         let display = event_loop.display_handle().context("window system display handle")?.as_raw();
         let device = Device::new(&DeviceOptions {
-            name: args.device.clone(),
+            name: args.scene.device.clone(),
             instance: InstanceOptions { extensions: required_instance_extensions(display)?, ..Default::default() },
             extensions: required_device_extensions(),
         })
@@ -143,7 +136,7 @@ impl Viewer {
             orbit,
             light: args.light.light()?,
             exposure: args.exposure,
-            base_color: args.base_color,
+            base_color: args.scene.base_color,
             frames: 0,
             gpu_ms: 0.0,
             resized: false,
@@ -304,7 +297,7 @@ impl ApplicationHandler for App {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    let mesh = Mesh::by_name(&args.mesh)?;
+    let mesh = Mesh::by_name(&args.scene.mesh)?;
     let event_loop = EventLoop::new().map_err(|e| anyhow!("cannot connect to the window system ({e}); is DISPLAY set? for headless use: Xvfb :99 & DISPLAY=:99"))?;
     let mut app = App { args, mesh, viewer: None, error: None, dragging: None, cursor: None };
     event_loop.run_app(&mut app).context("window event loop")?;
