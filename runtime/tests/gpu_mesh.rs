@@ -28,6 +28,9 @@ fn top_camera(width: u32, height: u32, extent: f32) -> Camera {
 fn validation_errors_are_caught() {
     let device = device();
     if !device.instance().validation_enabled() {
+        // CI sets FABRIC_REQUIRE_VALIDATION=1 (it installs the layer), so there a missing
+        // layer fails here instead of silently turning every validation check off.
+        assert!(std::env::var_os("FABRIC_REQUIRE_VALIDATION").is_none(), "FABRIC_REQUIRE_VALIDATION is set but VK_LAYER_KHRONOS_validation is not installed");
         eprintln!("validation layer not installed; the canary cannot be tested here");
         return;
     }
