@@ -34,7 +34,18 @@ enum Command {
     Geometry(cmd::geometry::GeometryArgs),
 }
 
+/// Restores the default SIGPIPE action so that `fabric inspect … | head` ends quietly
+/// instead of panicking in `println!` (Rust ignores SIGPIPE by default).
+fn restore_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in main, before any thread exists; SIG_DFL is a valid action.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    restore_sigpipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Gen(a) => cmd::generate::run(a),
