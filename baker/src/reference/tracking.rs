@@ -94,6 +94,28 @@ impl<'v> TracedMedium<'v> {
         };
         let scale_bound = self.medium.scale() * self.medium.max_projected_area();
         let scale = self.medium.scale();
+        let walked = self.tentative_collisions(ray, t0, t1, rng, |t, majorant, rng| {
+            let g = ray.at(t);
+            let f = self.medium.footprint(g);
+            let rho = self.medium.density(&f);
+            let u = rng.next_f32() * majorant;
+            if u >= rho * scale_bound {
+                return None; // null collision, decided without the SGGX lookup
+            }
+            let sigma_t = scale * rho * self.medium.sggx(&f).projected_area(ray.d);
+            (u < sigma_t).then_some(Collision { t, g, footprint: f })
+        });
+        match walked {
+            Walked::Stopped(c) => FreeFlight::Collision(c),
+            Walked::Through { truncated: true } => FreeFlight::Truncated,
+            Walked::Through { truncated: false } => FreeFlight::Escaped,
+        }
+    }
+
+    /// The walk both trackers share: tentative collisions drawn against the majorant
+    /// grid over [t0, t1]; `visit(t, majorant, rng)` decides each one and stops the
+    /// walk by returning `Some`.
+    fn tentative_collisions<R>(&self, ray: &GridRay, t0: f32, t1: f32, rng: &mut Rng, mut visit: impl FnMut(f32, f32, &mut Rng) -> Option<R>) -> Walked<R> {
         let mut tau = rng.next_exp();
         let mut walk = self.majorants.walk(ray.g0, ray.dg, t0, t1);
         for seg in walk.by_ref() {
@@ -109,20 +131,12 @@ impl<'v> TracedMedium<'v> {
                 }
                 t += dt;
                 tau = rng.next_exp();
-                let g = ray.at(t);
-                let f = self.medium.footprint(g);
-                let rho = self.medium.density(&f);
-                let u = rng.next_f32() * seg.majorant;
-                if u >= rho * scale_bound {
-                    continue;
-                }
-                let sigma_t = scale * rho * self.medium.sggx(&f).projected_area(ray.d);
-                if u < sigma_t {
-                    return FreeFlight::Collision(Collision { t, g, footprint: f });
+                if let Some(r) = visit(t, seg.majorant, rng) {
+                    return Walked::Stopped(r);
                 }
             }
         }
-        if walk.truncated() { FreeFlight::Truncated } else { FreeFlight::Escaped }
+        Walked::Through { truncated: walk.truncated() }
     }
 
     /// An unbiased estimate of the transmittance along `ray` over [t_min, t_max]
@@ -133,39 +147,37 @@ impl<'v> TracedMedium<'v> {
         };
         let scale = self.medium.scale();
         let mut transmittance = 1.0f32;
-        let mut walk = self.majorants.walk(ray.g0, ray.dg, t0, t1);
-        let mut tau = rng.next_exp();
-        for seg in walk.by_ref() {
-            if seg.majorant <= 0.0 {
-                continue;
+        let walked = self.tentative_collisions(ray, t0, t1, rng, |t, majorant, rng| {
+            let f = self.medium.footprint(ray.at(t));
+            let rho = self.medium.density(&f);
+            if rho <= 0.0 {
+                return None;
             }
-            let mut t = seg.t0;
-            loop {
-                let dt = tau / seg.majorant;
-                if t + dt >= seg.t1 {
-                    tau -= (seg.t1 - t) * seg.majorant;
-                    break;
+            let sigma_t = scale * rho * self.medium.sggx(&f).projected_area(ray.d);
+            transmittance *= (1.0 - sigma_t / majorant).max(0.0);
+            if transmittance < RR_TRANSMITTANCE {
+                // Survive with probability T/threshold, then carry the threshold.
+                if rng.next_f32() * RR_TRANSMITTANCE >= transmittance {
+                    return Some(());
                 }
-                t += dt;
-                tau = rng.next_exp();
-                let f = self.medium.footprint(ray.at(t));
-                let rho = self.medium.density(&f);
-                if rho <= 0.0 {
-                    continue;
-                }
-                let sigma_t = scale * rho * self.medium.sggx(&f).projected_area(ray.d);
-                transmittance *= (1.0 - sigma_t / seg.majorant).max(0.0);
-                if transmittance < RR_TRANSMITTANCE {
-                    // Survive with probability T/threshold, then carry the threshold.
-                    if rng.next_f32() * RR_TRANSMITTANCE >= transmittance {
-                        return (0.0, false);
-                    }
-                    transmittance = RR_TRANSMITTANCE;
-                }
+                transmittance = RR_TRANSMITTANCE;
             }
+            None
+        });
+        match walked {
+            Walked::Stopped(()) => (0.0, false),
+            Walked::Through { truncated: true } => (0.0, true),
+            Walked::Through { truncated: false } => (transmittance, false),
         }
-        if walk.truncated() { (0.0, true) } else { (transmittance, false) }
     }
+}
+
+/// How a majorant walk ended.
+enum Walked<R> {
+    /// The visitor stopped it.
+    Stopped(R),
+    /// It ran to the end of the interval (or hit the step cap: `truncated`).
+    Through { truncated: bool },
 }
 
 #[cfg(test)]
