@@ -18,7 +18,7 @@ fn generated_fabric_to_geometry_to_measurement() {
     assert_eq!(geometry.dims, [nx, ny]);
     assert!(geometry.h.iter().all(|h| h.is_finite() && *h >= 0.0 && *h <= nz as f32));
     assert!(geometry.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4 && n.z > 0.0));
-    assert!(geometry.flyaways.voxels.len() > 0, "a twill preset has flyaways");
+    assert!(!geometry.flyaways.voxels.is_empty(), "a twill preset has flyaways");
 
     // Geometry heights (voxels above the bottom face) → world z for the reference.
     let bbox = volume.bbox();

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use fabric_runtime::hybrid::format::{FileInfo, inspect};
+use fabric_runtime::hybrid::format::FileInfo;
 use fabric_runtime::hybrid::stats::Range;
 
 /// Prints what `path` holds; `json` prints the [`FileInfo`] as JSON instead of text.
@@ -22,10 +22,7 @@ pub fn run(path: &Path, json: bool) -> Result<()> {
 
 /// Reads and checks the file (memory-mapped), and describes it.
 pub fn inspect_file(path: &Path) -> Result<FileInfo> {
-    let file = std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
-    // SAFETY: a read-only private map, read as plain bytes; every byte is checked.
-    let map = unsafe { memmap2::Mmap::map(&file) }.with_context(|| format!("{}: cannot map", path.display()))?;
-    inspect(&map).with_context(|| format!("{}: not a valid hybrid model", path.display()))
+    fabric_runtime::hybrid::format::inspect_file(path).context("not a valid hybrid model")
 }
 
 fn range(r: &Range) -> String {

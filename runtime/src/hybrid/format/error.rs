@@ -44,6 +44,6 @@ pub enum FormatError {
 #[error("{}: {error}", path.display())]
 pub struct FileError {
     pub path: PathBuf,
-    #[source]
+    // Not `#[source]`: the message already carries it, and `{:#}` chains would print it twice.
     pub error: FormatError,
 }

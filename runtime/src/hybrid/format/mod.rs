@@ -14,7 +14,7 @@ pub mod reader;
 pub mod writer;
 
 pub use error::{FileError, FormatError};
-pub use reader::{FileInfo, SectionInfo, inspect, read, read_file};
+pub use reader::{FileInfo, SectionInfo, inspect, inspect_file, read, read_file};
 pub use writer::{to_bytes, write_file};
 
 // The records are copied to and from the file as native-endian bytes.

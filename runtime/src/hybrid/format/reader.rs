@@ -310,6 +310,16 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
 
 /// Reads a model from a file (memory-mapped).
 pub fn read_file(path: &Path) -> Result<HybridModel, FileError> {
+    with_mapped_file(path, read)
+}
+
+/// Inspects a file (memory-mapped): version, sections, model statistics.
+pub fn inspect_file(path: &Path) -> Result<FileInfo, FileError> {
+    with_mapped_file(path, inspect)
+}
+
+/// Maps `path` read-only and hands its bytes to `f`; errors name the file.
+fn with_mapped_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T, FormatError>) -> Result<T, FileError> {
     let fail = |error: FormatError| FileError { path: path.to_path_buf(), error };
     let file = std::fs::File::open(path).map_err(|e| fail(e.into()))?;
     let len = file.metadata().map_err(|e| fail(e.into()))?.len();
@@ -320,7 +330,7 @@ pub fn read_file(path: &Path) -> Result<HybridModel, FileError> {
     // change bytes under us, which the CRCs and checks turn into an error, not UB in
     // our code (we only read plain bytes).
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| fail(e.into()))?;
-    read(&map).map_err(fail)
+    f(&map).map_err(fail)
 }
 
 /// Reads and describes a file: version, sections, model statistics.
