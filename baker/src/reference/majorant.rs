@@ -305,7 +305,7 @@ mod tests {
     fn majorants_bound_sigma_t_along_rays() {
         let v = volume();
         for (lookup, periodic, block) in [(Lookup::Trilinear, false, [4, 4, 4]), (Lookup::Trilinear, true, [3, 5, 2]), (Lookup::Nearest, true, [8, 8, 4])] {
-            let m = Medium::new(&v, MediumOptions { lookup, periodic, mask: None }).unwrap();
+            let m = Medium::new(&v, MediumOptions { lookup, periodic, ..Default::default() }).unwrap();
             let grid = MajorantGrid::new(&m, block);
             let mut rng = crate::reference::rng::Rng::new(5, 0, 0);
             for _ in 0..300 {

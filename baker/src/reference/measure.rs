@@ -58,7 +58,7 @@ impl<'v> MeasureScene<'v> {
                 return Err(ReferenceError::BadHeight { x: i % nx, y: i / nx, value: h[i] });
             }
         }
-        let medium = TracedMedium::new(volume, MediumOptions { lookup, periodic: true, mask })?;
+        let medium = TracedMedium::new(volume, MediumOptions { lookup, periodic: true, mask, ..Default::default() })?;
         Ok(MeasureScene { medium, height: height_map.map(|h| h.to_vec()), path: PathSettings::default() })
     }
 

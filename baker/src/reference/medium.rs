@@ -39,16 +39,34 @@ pub enum Lookup {
     Nearest,
 }
 
+/// What the S of an interpolated lookup takes from the voxels it reads (DESIGN.md §4:
+/// an empty voxel carries no orientation, so nothing stored in empty space may change
+/// an image; real micro-CT volumes store zeros or noise there).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EmptyOrientation {
+    /// A voxel with ρ = 0 (empty, or removed by the mask) contributes S = I with its
+    /// interpolation weight; the others their fiber S. What Mitsuba renders from an S
+    /// grid that holds I in empty voxels.
+    #[default]
+    Isotropic,
+    /// S = Σ wᵢρᵢ Sᵢ / Σ wᵢρᵢ: weighted by density, so that a fiber's S reaches its
+    /// edge undiluted (S = I where every voxel read is empty).
+    DensityWeighted,
+}
+
 /// Options of a medium.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MediumOptions<'m> {
     pub lookup: Lookup,
+    /// How empty voxels enter the interpolated S.
+    pub empty_orientation: EmptyOrientation,
     /// Tile the sample forever in x and y.
     pub periodic: bool,
     /// Voxels to remove from the medium (`true` = removed), one per voxel in volume
     /// order (x fastest). The baker removes the flyaway voxels when it measures the
-    /// surface. A removed voxel has ρ = 0; its α and S still enter interpolation, as
-    /// those of any empty voxel do.
+    /// surface. A removed voxel has ρ = 0 and is empty in every respect: its stored S
+    /// is not used (see [`EmptyOrientation`]); its α enters the interpolated albedo but
+    /// only ever multiplies an interpolated ρ.
     pub mask: Option<&'m [bool]>,
 }
 
@@ -74,6 +92,7 @@ pub struct Medium<'v> {
     /// eigenvalue of a fiber S is max(1, σ²), and convex combinations keep the bound.
     max_projected_area: f32,
     lookup: Lookup,
+    empty_orientation: EmptyOrientation,
     periodic: bool,
 }
 
@@ -111,6 +130,7 @@ impl<'v> Medium<'v> {
             roughness: m.roughness,
             max_projected_area: m.roughness.max(1.0),
             lookup: options.lookup,
+            empty_orientation: options.empty_orientation,
             periodic: options.periodic,
         })
     }
@@ -219,14 +239,35 @@ impl<'v> Medium<'v> {
         rho
     }
 
-    /// The interpolated SGGX matrix over a footprint.
+    /// The interpolated SGGX matrix over a footprint. Empty voxels (ρ = 0 after the
+    /// mask) never contribute their stored orientation ([`EmptyOrientation`]).
     #[inline]
     pub fn sggx(&self, f: &Footprint) -> Sggx {
         let voxels = self.volume.voxels();
         let mut m = FiberMoment::default();
-        for k in 0..f.count {
-            if f.weight[k] > 0.0 {
-                m.add_weighted(voxels[f.index[k]].orientation(), f.weight[k]);
+        match self.empty_orientation {
+            EmptyOrientation::Isotropic => {
+                // S = I − (1 − σ²)·Σ wᵢ ω_fᵢ ω_fᵢᵀ over the non-empty voxels: an omitted
+                // voxel contributes wᵢ·I, since S is affine in the moment.
+                for k in 0..f.count {
+                    if f.weight[k] > 0.0 && self.density[f.index[k]] > 0.0 {
+                        m.add_weighted(voxels[f.index[k]].orientation(), f.weight[k]);
+                    }
+                }
+            }
+            EmptyOrientation::DensityWeighted => {
+                let mut total = 0.0;
+                for k in 0..f.count {
+                    let w = f.weight[k] * self.density[f.index[k]];
+                    if w > 0.0 {
+                        m.add_weighted(voxels[f.index[k]].orientation(), w);
+                        total += w;
+                    }
+                }
+                if total > 0.0 {
+                    let inv = 1.0 / total;
+                    m = FiberMoment { xx: m.xx * inv, yy: m.yy * inv, zz: m.zz * inv, xy: m.xy * inv, xz: m.xz * inv, yz: m.yz * inv };
+                }
             }
         }
         Sggx::from_fiber_moment(m, self.roughness)
@@ -383,5 +424,55 @@ mod tests {
         assert!(p.clip(Vec3::new(9.0, 1.5, 4.0), Vec3::new(0.0, 0.0, -2.0), 0.0, f32::INFINITY).is_some());
         // Horizontal ray inside a periodic slab never leaves it.
         assert_eq!(p.clip(Vec3::new(1.0, 1.0, 1.0), Vec3::X, 0.0, f32::INFINITY), Some((0.0, f32::INFINITY)));
+    }
+    /// A volume whose every other voxel is empty, with `dir(x, y, z)` stored in the
+    /// empty ones (what a micro-CT volume holds there is arbitrary).
+    fn sparse_volume(dir: impl Fn(usize, usize, usize) -> Vec3) -> FabricVolume {
+        let mut v = FabricVolume::new([6, 5, 4], Aabb::new(Vec3::ZERO, Vec3::new(6.0, 5.0, 4.0)), MaterialParams { density_scale: 3.0, roughness: 0.3 });
+        for z in 0..4 {
+            for y in 0..5 {
+                for x in 0..6 {
+                    let filled = (x + 2 * y + 3 * z) % 3 != 0;
+                    let voxel = if filled { Voxel::pack(1.0 + x as f32, Vec3::splat(0.8), Vec3::new(1.0, 0.3 * y as f32, 0.1)) } else { Voxel::pack(0.0, Vec3::splat(0.8), dir(x, y, z)) };
+                    v.set(x, y, z, voxel);
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn what_empty_voxels_store_never_changes_the_medium() {
+        let a = sparse_volume(|_, _, _| Vec3::Z);
+        let b = sparse_volume(|x, y, z| {
+            let h = crate::reference::rng::mix64((x + 7 * y + 49 * z) as u64);
+            Vec3::new((h & 0xff) as f32 - 127.5, ((h >> 8) & 0xff) as f32 - 127.5, ((h >> 16) & 0xff) as f32 - 127.5)
+        });
+        for empty_orientation in [EmptyOrientation::Isotropic, EmptyOrientation::DensityWeighted] {
+            let options = MediumOptions { periodic: true, empty_orientation, ..Default::default() };
+            let (ma, mb) = (Medium::new(&a, options).unwrap(), Medium::new(&b, options).unwrap());
+            for k in 0..2000 {
+                let g = Vec3::new((k % 37) as f32 * 0.17, (k % 23) as f32 * 0.23, (k % 13) as f32 * 0.31);
+                let (fa, fb) = (ma.footprint(g), mb.footprint(g));
+                assert_eq!(ma.sggx(&fa).to_array(), mb.sggx(&fb).to_array(), "{empty_orientation:?} at {g}");
+            }
+        }
+        // Isotropic: between a filled X-ish fiber voxel and an empty one, S is half fiber,
+        // half I; density-weighted: the fiber's S undiluted.
+        let iso = Medium::new(&a, MediumOptions::default()).unwrap();
+        let dw = Medium::new(&a, MediumOptions { empty_orientation: EmptyOrientation::DensityWeighted, ..Default::default() }).unwrap();
+        // Voxel (0,0,0) is empty, (1,0,0) filled; half way between their centres.
+        let g = Vec3::new(1.0, 0.5, 0.5);
+        let fiber = Sggx::fiber(Vec3::new(1.0, 0.0, 0.1).normalize(), 0.3);
+        let (si, sd) = (iso.sggx(&iso.footprint(g)), dw.sggx(&dw.footprint(g)));
+        assert!((si.xx - 0.5 * (1.0 + fiber.xx)).abs() < 1e-3, "{si:?} vs {fiber:?}");
+        assert!((sd.xx - fiber.xx).abs() < 1e-3, "{sd:?} vs {fiber:?}");
+        // And so the images: bit-identical measurement images.
+        let b = sparse_volume(|x, y, z| Vec3::new(y as f32 + 0.5, z as f32 - 1.5, x as f32 * 0.3 + 0.2));
+        let (wi, wo) = (Vec3::new(0.5, 0.2, 0.8), Vec3::new(-0.4, 0.1, 0.9));
+        let image = |v: &FabricVolume| crate::reference::MeasureScene::new(v, Lookup::Trilinear, None, None).unwrap().render_image(wi, wo, 8, 3).unwrap().0;
+        let (ia, ib) = (image(&a), image(&b));
+        assert!(ia.mean() > 0.0);
+        assert_eq!(ia.pixels, ib.pixels);
     }
 }

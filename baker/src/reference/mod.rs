@@ -14,7 +14,7 @@ mod validation;
 
 pub use integrator::{PathSettings, PathStats};
 pub use measure::MeasureScene;
-pub use medium::{Lookup, MediumOptions};
+pub use medium::{EmptyOrientation, Lookup, MediumOptions};
 pub use render::{RenderSettings, RenderStats, render};
 pub use tracking::TracedMedium;
 

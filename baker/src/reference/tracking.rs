@@ -218,7 +218,7 @@ mod tests {
         let v = volume();
         for lookup in [Lookup::Trilinear, Lookup::Nearest] {
             for periodic in [false, true] {
-                let tracker = TracedMedium::new(&v, MediumOptions { lookup, periodic, mask: None }).unwrap();
+                let tracker = TracedMedium::new(&v, MediumOptions { lookup, periodic, ..Default::default() }).unwrap();
                 let m = &tracker.medium;
                 for (k, (o, d)) in [(Vec3::new(1.0, 1.0, 2.0), Vec3::new(0.3, 0.1, -1.0)), (Vec3::new(0.1, 1.9, 0.4), Vec3::new(1.0, -0.4, 0.05))].into_iter().enumerate() {
                     let ray = GridRay::new(m, o, d.normalize());

@@ -100,6 +100,17 @@ struct AxisCursor {
 /// over [t_start, t_end], calling `shade(node, t_in)` for the radiance of each node it
 /// crosses (at its entry point), compositing front to back.
 pub fn march_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut shade: impl FnMut(&FlyawayNode, f32) -> Vec3) -> FlyawayMarch {
+    let mut radiance = Vec3::ZERO;
+    let mut out = visit_flyaways(f, g, ray, t_start, t_end, max_columns, |node, t_in, weight| radiance += weight * shade(node, t_in));
+    out.radiance = radiance;
+    out
+}
+
+/// The march of [`march_flyaways`], calling `visit(node, t_in, weight)` for each node
+/// crossed, `weight` = (transmittance in front of it) · (its opacity): the factor its
+/// radiance enters the pixel with. The returned march's `radiance` is zero. The baker's
+/// flyaway fit uses the weights directly (the pixel is linear in each node's BRDF).
+pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut visit: impl FnMut(&FlyawayNode, f32, f32)) -> FlyawayMarch {
     let mut out = FlyawayMarch { radiance: Vec3::ZERO, transmittance: 1.0, columns: 0, limited: false };
     if t_end.is_nan() || t_end <= t_start || ray.d.z >= 0.0 {
         return out;
@@ -163,7 +174,7 @@ pub fn march_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
             let t_out = t_next.min(t_at_depth(bottom));
             let opacity = flyaway_opacity(node.alpha(), t_out - t_in, g.edge);
             if opacity > 0.0 {
-                out.radiance += out.transmittance * opacity * shade(node, t_in);
+                visit(node, t_in, out.transmittance * opacity);
                 out.transmittance *= 1.0 - opacity;
                 if out.transmittance < MIN_TRANSMITTANCE {
                     out.transmittance = 0.0;

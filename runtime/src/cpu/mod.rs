@@ -22,6 +22,7 @@
 
 pub mod flyaways;
 pub mod heightfield;
+pub mod probe;
 pub mod render;
 pub mod shading;
 

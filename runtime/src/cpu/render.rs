@@ -22,6 +22,16 @@ use crate::hybrid::HybridModel;
 use crate::image::Image;
 use crate::scene::{Camera, Light, LightSample, Ray};
 
+/// The camera of [`Scene::for_rays`]: valid, never used to make rays.
+static NO_CAMERA: Camera = Camera {
+    origin: Vec3::new(0.0, 0.0, 1.0),
+    target: Vec3::ZERO,
+    up: Vec3::Y,
+    projection: crate::scene::Projection::Orthographic { extent: 1.0 },
+    width: 1,
+    height: 1,
+};
+
 /// Everything prepared once per image.
 pub struct Scene<'a> {
     pub model: &'a HybridModel,
@@ -31,7 +41,7 @@ pub struct Scene<'a> {
     pub tracer: HeightTracer,
     pub shadows: bool,
     reading: BrdfReading,
-    grids: Vec<FlyawayGrid>,
+    pub(crate) grids: Vec<FlyawayGrid>,
 }
 
 /// What one camera ray found.
@@ -79,6 +89,12 @@ impl<'a> Scene<'a> {
         };
         let grids = (0..model.levels.len()).map(|l| FlyawayGrid::new(model, l, options.periodic)).collect();
         Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, options })
+    }
+
+    /// A scene for rays given by the caller rather than by a camera (the baker's probe,
+    /// [`super::probe`]): `trace_ray` and `probe_ray` work, pixel methods do not apply.
+    pub fn for_rays(model: &'a HybridModel, lights: &'a [Light], options: CpuRenderOptions) -> Result<Scene<'a>, CpuRenderError> {
+        Scene::new(model, &NO_CAMERA, lights, options)
     }
 
     /// Where a ray enters the top plane (t), or None: from below, parallel, or (on a
@@ -137,7 +153,7 @@ impl<'a> Scene<'a> {
     }
 
     /// The level-ℓ texel under world point `p` (wrapped or clamped into the tile).
-    fn texel_at(&self, p: Vec3, level: usize) -> (u32, u32) {
+    pub fn texel_at(&self, p: Vec3, level: usize) -> (u32, u32) {
         let m = self.model;
         let u = (p.truncate() - m.tile.origin) / m.texel_size();
         let (w, h) = (m.width() as i32, m.height_px() as i32);
@@ -148,7 +164,7 @@ impl<'a> Scene<'a> {
 
     /// Visibility of a light from `p` (height-field shadow ray), counting step-limited
     /// shadow rays.
-    fn visibility(&self, p: Vec3, s: &LightSample, limited: &mut u32) -> f32 {
+    pub fn visibility(&self, p: Vec3, s: &LightSample, limited: &mut u32) -> f32 {
         if !self.shadows {
             return 1.0;
         }

@@ -117,7 +117,7 @@ fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
         LookupArg::Nearest => Lookup::Nearest,
     };
     let t_setup = Instant::now();
-    let medium = TracedMedium::with_block(&volume, MediumOptions { lookup, periodic: args.periodic, mask: None }, args.block).with_context(|| format!("cannot path-trace {}", args.dir.display()))?;
+    let medium = TracedMedium::with_block(&volume, MediumOptions { lookup, periodic: args.periodic, ..Default::default() }, args.block).with_context(|| format!("cannot path-trace {}", args.dir.display()))?;
     let setup_seconds = t_setup.elapsed().as_secs_f64();
     let settings = RenderSettings { spp: args.spp, seed: args.seed, path: PathSettings { max_depth: args.max_depth, rr_depth: args.rr_depth } };
     settings.validate()?;
