@@ -4,6 +4,9 @@
 // `!(x > 0.0)` is how this crate rejects NaN together with non-positive values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bake;
+pub mod evaluate;
+pub mod fit;
 pub mod generate;
 pub mod geometry;
 pub mod reference;

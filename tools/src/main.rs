@@ -32,6 +32,8 @@ enum Command {
     View(cmd::view::ViewArgs),
     /// Extract the hybrid geometry (h0, h, normal/tangent maps, flyaways) from a fabric volume.
     Geometry(cmd::geometry::GeometryArgs),
+    /// Bake a fabric volume into a hybrid model (fitted BRDFs) and measure it on held-out views.
+    Bake(cmd::bake::BakeArgs),
 }
 
 /// Restores the default SIGPIPE action so that `fabric inspect … | head` ends quietly
@@ -56,6 +58,7 @@ fn main() -> std::process::ExitCode {
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),
         Command::Geometry(a) => cmd::geometry::run(a),
+        Command::Bake(a) => cmd::bake::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

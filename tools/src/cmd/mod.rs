@@ -1,5 +1,6 @@
 //! One module per `fabric` subcommand.
 
+pub mod bake;
 pub mod devices;
 pub mod diff;
 pub mod generate;

@@ -1,0 +1,498 @@
+//! `fabric bake`: volume → geometry → training renderings → clusters → fitted BRDFs →
+//! [`HybridModel`] (paper §5, Algorithm 1).
+//!
+//! 1. Geometry (§5.2): h, n, t and the flyaway volume V ([`crate::geometry`]).
+//! 2. Training renderings (§5.3.1): the reference's measurement images of the volume
+//!    with the surface mask applied, at m configurations ([`fit::directions`]), as two
+//!    halves so their noise is known.
+//! 3. Samples: every training ray traced through the model by the runtime's probe, so
+//!    each pixel is attributed to the texels the model shows along its rays.
+//! 4. K doubling (§5.3.3, Algorithm 1 lines 3–13): k-means of the features into K
+//!    clusters; the representative of each (the texel nearest its centre) is measured
+//!    densely (§5.3.2); each cluster's BRDF is fitted (Eq. 8) to its representative's
+//!    dense samples *and* to every training sample the model attributes to the
+//!    cluster's texels — the model's output is judged on images, so the fit matches
+//!    them; the error of the model on the training images decides whether K doubles.
+//! 5. Flyaways (§5.3.4): [`fit::flyaways`].
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use fabric_runtime::brdf::{BrdfReading, ClothParams};
+use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, Surface, Tile};
+use fabric_runtime::image::Image;
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, Target, fit_cluster, predict};
+use crate::fit::directions::{Pair, PairOptions, training_pairs};
+use crate::fit::features::texel_features;
+use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
+use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry};
+use crate::reference::rng::mix64;
+use crate::reference::{Lookup, MeasureScene, ReferenceError};
+use crate::volume::FabricVolume;
+
+/// Which voxels the surface fit's renderings leave out (the paper: "the complement of V").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceMask {
+    /// Everything above each column's surface run: V and the low-density halo around it.
+    AboveSurface,
+    /// Exactly the voxels of V.
+    Flyaways,
+    /// Nothing: the surface is fitted to the full volume.
+    None,
+}
+
+/// Everything `fabric bake` can set. `Default` is what the command uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeOptions {
+    pub seed: u64,
+    pub geometry: GeometryOptions,
+    pub lookup: Lookup,
+    pub pairs: PairOptions,
+    /// Samples per texel of each training rendering (split into two halves).
+    pub spp: u32,
+    /// Probe rays per training pixel.
+    pub probe_rays: u32,
+    /// Fit (and render by default) with the height field's shadowing of the light.
+    pub shadows: bool,
+    pub surface_mask: SurfaceMask,
+    /// K starts at `k_min` and doubles up to `k_max` (Algorithm 1).
+    pub k_min: usize,
+    pub k_max: usize,
+    /// Stop when the training-image error (relative RMSE) is below δ...
+    pub delta: f64,
+    /// ... or when doubling K lowers it by less than this fraction.
+    pub min_gain: f64,
+    pub fit: ClusterFitOptions,
+    /// Dense measurement of each representative: pairs and samples per pair.
+    pub dense_pairs: usize,
+    pub dense_spp: u32,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        BakeOptions {
+            seed: 1,
+            geometry: GeometryOptions { detail_strength: 0.25, ..Default::default() },
+            lookup: Lookup::Trilinear,
+            pairs: PairOptions::default(),
+            spp: 32,
+            probe_rays: 2,
+            shadows: true,
+            surface_mask: SurfaceMask::AboveSurface,
+            k_min: 4,
+            k_max: 32,
+            delta: 0.05,
+            min_gain: 0.03,
+            fit: ClusterFitOptions::default(),
+            dense_pairs: 48,
+            dense_spp: 32,
+        }
+    }
+}
+
+/// Why a bake cannot run or finish.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("geometry: {0}")]
+    Geometry(#[from] GeometryError),
+    #[error("training rendering: {0}")]
+    Reference(#[from] ReferenceError),
+    #[error("building the model: {0}")]
+    Model(#[from] ModelError),
+    #[error("clustering: {0}")]
+    Cluster(String),
+    #[error("option {name} = {value}: {reason}")]
+    BadOption { name: &'static str, value: String, reason: String },
+}
+
+/// Progress of a bake, stage by stage (the command draws bars; tests pass [`NoBakeProgress`]).
+pub trait BakeProgress: Sync {
+    fn begin(&self, _stage: &str, _total: u64) {}
+    fn advance(&self, _n: u64) {}
+    fn end(&self) {}
+}
+
+pub struct NoBakeProgress;
+impl BakeProgress for NoBakeProgress {}
+
+/// One round of Algorithm 1's loop.
+#[derive(Clone, Debug, Serialize)]
+pub struct KRound {
+    pub k: usize,
+    /// Relative RMSE of the model against the training images, per pixel and over
+    /// 4×4-texel blocks.
+    pub error: f64,
+    pub block_error: f64,
+    /// Median relative residual of the cluster fits.
+    pub median_cluster_residual: f64,
+    pub seconds: f64,
+    pub dense_paths: u64,
+}
+
+/// A cluster whose fit fell back.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClusterProblem {
+    pub cluster: usize,
+    pub texels: usize,
+    pub problem: String,
+}
+
+/// What a bake measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeReport {
+    pub dims: [usize; 3],
+    pub pairs: Vec<Pair>,
+    pub training_spp: u32,
+    pub training_paths: u64,
+    /// The training renderings' own relative error (from the two halves).
+    pub noise_floor: f64,
+    pub rounds: Vec<KRound>,
+    /// The K kept and its errors.
+    pub k: usize,
+    pub error: f64,
+    pub block_error: f64,
+    /// Training-image error split by pair kind and by grazing (either polar angle > 55°).
+    pub error_by_kind: Vec<(String, f64)>,
+    pub error_grazing: f64,
+    pub error_non_grazing: f64,
+    pub cluster_problems: Vec<ClusterProblem>,
+    pub reading: String,
+    pub shadows: bool,
+    pub surface_mask: SurfaceMask,
+    pub normal_detail: f32,
+    pub flyaway_voxels: usize,
+    pub stage_seconds: Vec<(String, f64)>,
+    pub total_seconds: f64,
+    pub input_bytes: u64,
+    pub model_bytes: u64,
+}
+
+/// The result of a bake.
+pub struct Bake {
+    pub model: HybridModel,
+    pub report: BakeReport,
+    pub geometry: Geometry,
+    pub training: TrainingImages,
+    /// Per texel: its cluster; per cluster: its fit.
+    pub clusters: Vec<u32>,
+    pub fits: Vec<ClusterFit>,
+    /// The model's training-image predictions (same layout as `training.images`).
+    pub predictions: Vec<Image>,
+}
+
+impl BakeOptions {
+    pub fn validate(&self) -> Result<(), BakeError> {
+        let bad = |name, value: String, reason: &str| Err(BakeError::BadOption { name, value, reason: reason.into() });
+        if self.spp < 2 || self.spp > 1 << 16 {
+            return bad("spp", self.spp.to_string(), "training samples per texel must be in 2..=65536 (two halves)");
+        }
+        if self.probe_rays == 0 || self.probe_rays > 64 {
+            return bad("probe_rays", self.probe_rays.to_string(), "must be in 1..=64");
+        }
+        if self.k_min == 0 || self.k_max < self.k_min || self.k_max > 65536 {
+            return bad("k", format!("{}..{}", self.k_min, self.k_max), "need 1 ≤ k_min ≤ k_max ≤ 65536");
+        }
+        if !(self.delta >= 0.0 && self.delta.is_finite()) || !(self.min_gain >= 0.0 && self.min_gain < 1.0) {
+            return bad("delta/min_gain", format!("{}/{}", self.delta, self.min_gain), "δ ≥ 0 and 0 ≤ min_gain < 1");
+        }
+        if self.pairs.count < 8 || self.pairs.count > 4096 {
+            return bad("pairs", self.pairs.count.to_string(), "between 8 and 4096 training configurations");
+        }
+        if !(self.pairs.max_polar_deg > 5.0 && self.pairs.max_polar_deg <= 85.0) {
+            return bad("max_polar", self.pairs.max_polar_deg.to_string(), "degrees in (5, 85]");
+        }
+        if self.fit.lobes == 0 || self.fit.lobes > 4 {
+            return bad("lobes", self.fit.lobes.to_string(), "1..=4 lobes at level 0");
+        }
+        if !(self.fit.eta >= 1.0 && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
+            return bad("eta", self.fit.eta.to_string(), "must be in [1, 4]");
+        }
+        Ok(())
+    }
+}
+
+/// The height h as world z per texel (what the measurement rays aim at).
+fn world_heights(volume: &FabricVolume, g: &Geometry) -> Vec<f32> {
+    let (z0, vz) = (volume.bbox().min.z, volume.voxel_size().z);
+    g.h.iter().map(|h| z0 + h * vz).collect()
+}
+
+/// The model's level 0 with the geometry's frames, cluster `clusters[j]` per texel and
+/// `params` per cluster (a skeleton with one zero BRDF when `params` is empty).
+pub fn level0(g: &Geometry, clusters: &[u32], params: &[ClothParams]) -> Level {
+    let mut table = BrdfTable::new();
+    if params.is_empty() {
+        table.push(&ClothParams::new(Vec3::ZERO, 1.5, 0.0, &[]));
+    }
+    for p in params {
+        table.push(p);
+    }
+    let texels = (0..g.texels()).map(|j| ClusteredTexel::new(g.normals[j], g.tangents[j], clusters.get(j).copied().unwrap_or(0) as u16)).collect();
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None }
+}
+
+/// Bakes `volume` into a hybrid model (level 0).
+pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakeProgress) -> Result<Bake, BakeError> {
+    options.validate()?;
+    let start = Instant::now();
+    let mut stage_seconds: Vec<(String, f64)> = Vec::new();
+    let mut stage = |name: &str, t: Instant| stage_seconds.push((name.to_string(), t.elapsed().as_secs_f64()));
+
+    // 1. Geometry.
+    let t = Instant::now();
+    progress.begin("geometry", 1);
+    let geometry = extract_geometry(volume, &options.geometry)?;
+    progress.end();
+    stage("geometry", t);
+    let [nx, ny, nz] = volume.dims();
+    let texels = nx * ny;
+    if texels > 65536 * 65536 {
+        return Err(BakeError::BadOption { name: "volume", value: format!("{nx}×{ny}"), reason: "too many texels".into() });
+    }
+
+    // The model's geometry: tile, height field, texel frames.
+    let bbox = volume.bbox();
+    let tile = Tile::from_source(bbox, [nx as u32, ny as u32, nz as u32]);
+    let height = HeightField::from_voxel_heights(nx as u32, ny as u32, &geometry.h, nz as u32, &tile)?;
+    let meta = |fit_error: f32, note: String| BakeMetadata {
+        reading: options.fit.reading,
+        fitted_with_shadowing: options.shadows,
+        fit_error: vec![fit_error],
+        source_bbox: bbox,
+        source_dims: [nx as u32, ny as u32, nz as u32],
+        seed: options.seed,
+        note,
+    };
+    let skeleton = HybridModel { tile, height: height.clone(), levels: vec![level0(&geometry, &[], &[])], meta: meta(-1.0, String::new()) };
+    skeleton.validate()?;
+
+    // 2. Training renderings of the surface (mask applied).
+    let t = Instant::now();
+    let heights = world_heights(volume, &geometry);
+    let mask: Option<Vec<bool>> = match options.surface_mask {
+        SurfaceMask::AboveSurface => Some(geometry.above_surface_mask()),
+        SurfaceMask::Flyaways => Some(geometry.flyaway_mask().to_bools()),
+        SurfaceMask::None => None,
+    };
+    let measure = MeasureScene::new(volume, options.lookup, Some(&heights), mask.as_deref())?;
+    let pairs = training_pairs(&PairOptions { seed: mix64(options.seed ^ options.pairs.seed), ..options.pairs.clone() });
+    progress.begin("training renderings", pairs.len() as u64);
+    let training = render_training(&measure, &pairs, options.spp, options.seed, &|| progress.advance(1))?;
+    progress.end();
+    stage("training renderings", t);
+
+    // 3. Samples: the training rays through the model.
+    let t = Instant::now();
+    let probe = ProbeOptions { rays: options.probe_rays, shadows: options.shadows };
+    let all_texels: Vec<u32> = (0..texels as u32).collect();
+    let jitter = image_jitter(half_seeds(options.seed)[0]);
+    progress.begin("probing the model", pairs.len() as u64);
+    let mut samples: Vec<Sample> = Vec::new();
+    for (c, p) in pairs.iter().enumerate() {
+        let base = (c * texels) as u32;
+        samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &all_texels, &probe, &jitter, &|j| base + j));
+        progress.advance(1);
+    }
+    progress.end();
+    let target_of = |s: &Sample| training.images[s.target as usize / texels].pixels[s.target as usize % texels];
+    stage("probing", t);
+
+    // 4. Features and K doubling.
+    let features = texel_features(&geometry.normals, &geometry.tangents, &training.images);
+    let dense_set = training_pairs(&PairOptions { count: options.dense_pairs.max(8), seed: mix64(options.seed ^ 0x64656e7365), ..options.pairs.clone() });
+    let mut dense_cache: HashMap<u32, Vec<Sample>> = HashMap::new();
+    let mut dense_values: Vec<Vec3> = Vec::new();
+    let dense_seed = mix64(options.seed ^ 0x6d65_6173);
+    let mut rounds: Vec<KRound> = Vec::new();
+    let mut best: Option<(f64, Vec<u32>, Vec<ClusterFit>, Vec<Image>)> = None;
+    let mut k = options.k_min.min(texels);
+    let t_fit = Instant::now();
+    loop {
+        let t_round = Instant::now();
+        progress.begin(&format!("K = {k}: clustering"), 1);
+        let km = kmeans(&features.data, features.dim, k, &KMeansOptions { seed: options.seed, ..Default::default() }).map_err(|e| BakeError::Cluster(e.to_string()))?;
+        let reps = representatives(&features.data, features.dim, &km);
+        progress.end();
+        // Dense measurement of new representatives.
+        let new_reps: Vec<u32> = reps.iter().map(|&r| r as u32).filter(|r| !dense_cache.contains_key(r)).collect();
+        progress.begin(&format!("K = {k}: dense measurement"), new_reps.len() as u64);
+        let mut dense_paths = 0;
+        for &rep in &new_reps {
+            let (x, y) = (rep as usize % nx, rep as usize / nx);
+            let pairs_wiwo: Vec<(Vec3, Vec3)> = dense_set.iter().map(|p| (p.wi, p.wo)).collect();
+            let (values, stats) = measure.measure_texel((x, y), &pairs_wiwo, options.dense_spp, dense_seed)?;
+            dense_paths += stats.paths;
+            let mut rep_samples = Vec::new();
+            for (c, p) in dense_set.iter().enumerate() {
+                let index = dense_values.len() as u32;
+                dense_values.push(values[c]);
+                let jitter = |texel: u32, s: u32| texel_jitter(dense_seed, texel, c as u32, s);
+                rep_samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &[rep], &probe, &jitter, &|_| index));
+            }
+            dense_cache.insert(rep, rep_samples);
+            progress.advance(1);
+        }
+        progress.end();
+        // Gather each cluster's targets: training samples by the texel hit, and the dense
+        // samples of its representative.
+        let cluster = &km.assignment;
+        let mut targets: Vec<Vec<Target>> = vec![Vec::new(); k];
+        for s in &samples {
+            targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: target_of(s) });
+        }
+        for &rep in &reps {
+            for s in &dense_cache[&(rep as u32)] {
+                targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
+            }
+        }
+        progress.begin(&format!("K = {k}: fitting"), k as u64);
+        let fits: Vec<ClusterFit> = targets
+            .par_iter()
+            .map(|t| {
+                let f = fit_cluster(t, &options.fit);
+                progress.advance(1);
+                f
+            })
+            .collect();
+        progress.end();
+        // The model's training images, and its error against them.
+        let predictions = predict_images(&samples, cluster, &fits, options.fit.reading, &training, texels);
+        let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
+        let mut residuals: Vec<f64> = fits.iter().filter(|f| f.samples > 0).map(|f| f.relative_residual()).collect();
+        residuals.sort_by(|a, b| a.total_cmp(b));
+        let median = residuals.get(residuals.len() / 2).copied().unwrap_or(0.0);
+        rounds.push(KRound { k, error, block_error, median_cluster_residual: median, seconds: t_round.elapsed().as_secs_f64(), dense_paths });
+        let improved = best.as_ref().map_or(true, |b| error < b.0);
+        let gain = best.as_ref().map_or(1.0, |b| (b.0 - error) / b.0.max(1e-30));
+        if improved {
+            best = Some((error, cluster.clone(), fits, predictions));
+        }
+        if error < options.delta.max(training.noise) || gain < options.min_gain || k >= options.k_max.min(texels) {
+            break;
+        }
+        k = (2 * k).min(options.k_max).min(texels);
+    }
+    stage("clustering and fitting", t_fit);
+    let (error, clusters, fits, predictions) = best.expect("at least one round");
+    let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
+    let k = params.len();
+    let block_error = rounds.iter().find(|r| r.k == k).map_or(error, |r| r.block_error);
+
+    let cluster_problems = fits
+        .iter()
+        .enumerate()
+        .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
+        .collect();
+    let (error_by_kind, error_grazing, error_non_grazing) = split_errors(&predictions, &training);
+
+    let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}", env!("CARGO_PKG_VERSION"), error, training.noise);
+    let model = HybridModel { tile, height, levels: vec![level0(&geometry, &clusters, &params)], meta: meta(error as f32, note) };
+    model.validate()?;
+    let model_bytes = fabric_runtime::hybrid::format::to_bytes(&model).map(|b| b.len() as u64).unwrap_or(0);
+    let report = BakeReport {
+        dims: [nx, ny, nz],
+        pairs: pairs.clone(),
+        training_spp: options.spp,
+        training_paths: training.paths,
+        noise_floor: training.noise,
+        rounds,
+        k,
+        error,
+        block_error,
+        error_by_kind,
+        error_grazing,
+        error_non_grazing,
+        cluster_problems,
+        reading: options.fit.reading.name().into(),
+        shadows: options.shadows,
+        surface_mask: options.surface_mask,
+        normal_detail: options.geometry.detail_strength,
+        flyaway_voxels: geometry.flyaways.len(),
+        stage_seconds,
+        total_seconds: start.elapsed().as_secs_f64(),
+        input_bytes: (texels * nz * 7 * 4) as u64,
+        model_bytes,
+    };
+    Ok(Bake { model, report, geometry, training, clusters, fits, predictions })
+}
+
+/// The model's image for each training pair: per pixel, the sum of its samples'
+/// predictions (each carries its ray weight).
+fn predict_images(samples: &[Sample], cluster: &[u32], fits: &[ClusterFit], reading: BrdfReading, training: &TrainingImages, texels: usize) -> Vec<Image> {
+    let mut images: Vec<Image> = training.images.iter().map(|i| Image::new(i.width, i.height)).collect();
+    for s in samples {
+        let p = &fits[cluster[s.hit as usize] as usize].params;
+        let image = &mut images[s.target as usize / texels];
+        image.pixels[s.target as usize % texels] += predict(p, &s.geo, reading);
+    }
+    images
+}
+
+/// 4×4 block means of a texel-order image (partial blocks at the edges included).
+pub fn block_mean(image: &Image, block: u32) -> Image {
+    let (w, h) = (image.width.div_ceil(block), image.height.div_ceil(block));
+    let mut out = Image::new(w, h);
+    let mut counts = vec![0u32; (w * h) as usize];
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let k = ((y / block) * w + x / block) as usize;
+            out.pixels[k] += image.get(x, y);
+            counts[k] += 1;
+        }
+    }
+    for (p, c) in out.pixels.iter_mut().zip(counts) {
+        *p /= c.max(1) as f32;
+    }
+    out
+}
+
+/// Relative RMSE over all images, per pixel and over 4×4 blocks.
+pub fn image_errors(test: &[Image], reference: &[Image], _nx: usize, _ny: usize) -> (f64, f64) {
+    let (mut d2, mut r2, mut bd2, mut br2) = (0f64, 0f64, 0f64, 0f64);
+    for (a, b) in test.iter().zip(reference) {
+        for (p, q) in a.pixels.iter().zip(&b.pixels) {
+            d2 += (*p - *q).as_dvec3().length_squared();
+            r2 += q.as_dvec3().length_squared();
+        }
+        let (ba, bb) = (block_mean(a, 4), block_mean(b, 4));
+        for (p, q) in ba.pixels.iter().zip(&bb.pixels) {
+            bd2 += (*p - *q).as_dvec3().length_squared();
+            br2 += q.as_dvec3().length_squared();
+        }
+    }
+    let rel = |d: f64, r: f64| if r > 0.0 { (d / r).sqrt() } else { 0.0 };
+    (rel(d2, r2), rel(bd2, br2))
+}
+
+/// Training-image error by pair kind, and for grazing (either polar angle > 55°) and
+/// other pairs.
+fn split_errors(predictions: &[Image], training: &TrainingImages) -> (Vec<(String, f64)>, f64, f64) {
+    let mut by_kind: Vec<(String, f64, f64)> = Vec::new();
+    let (mut g, mut ng) = ([0f64; 2], [0f64; 2]);
+    for ((p, r), pair) in predictions.iter().zip(&training.images).zip(&training.pairs) {
+        let (mut d2, mut r2) = (0f64, 0f64);
+        for (a, b) in p.pixels.iter().zip(&r.pixels) {
+            d2 += (*a - *b).as_dvec3().length_squared();
+            r2 += b.as_dvec3().length_squared();
+        }
+        let kind = format!("{:?}", pair.kind).to_lowercase();
+        match by_kind.iter_mut().find(|(k, _, _)| *k == kind) {
+            Some(e) => {
+                e.1 += d2;
+                e.2 += r2;
+            }
+            None => by_kind.push((kind, d2, r2)),
+        }
+        let acc = if pair.max_polar_deg() > 55.0 { &mut g } else { &mut ng };
+        acc[0] += d2;
+        acc[1] += r2;
+    }
+    let rel = |a: [f64; 2]| if a[1] > 0.0 { (a[0] / a[1]).sqrt() } else { 0.0 };
+    (by_kind.into_iter().map(|(k, d, r)| (k, if r > 0.0 { (d / r).sqrt() } else { 0.0 })).collect(), rel(g), rel(ng))
+}

@@ -1,0 +1,14 @@
+//! Fitting the spatially varying cloth BRDF (paper §5.3, Algorithm 1): training
+//! configurations ([`directions`]), training renderings and the model-side samples
+//! ([`samples`]), per-texel features ([`features`]), clustering ([`kmeans`]), the
+//! per-cluster fit ([`cluster_fit`]: Nelder–Mead over [`simplex`] with the linear
+//! parameters by [`nnls`]) and the flyaways' fit ([`flyaways`]). The pipeline that
+//! chains them is `crate::bake`.
+
+pub mod cluster_fit;
+pub mod directions;
+pub mod features;
+pub mod kmeans;
+pub mod nnls;
+pub mod samples;
+pub mod simplex;

@@ -1,0 +1,158 @@
+//! Training renderings and the samples the fit matches (paper §5.3.1–§5.3.2).
+//!
+//! A training rendering is the reference's measurement image of every texel for one
+//! pair (ω_i, ω_o) ([`MeasureScene::render_image`]), rendered as two independent halves
+//! so that its own noise is known. A **sample** is one of the rays behind a pixel, traced
+//! through the model by the runtime's probe (`cpu::probe`): it records which texel the
+//! model shows along that ray, that texel's frame, the light's visibility there, and the
+//! angles the BRDF needs, so a cluster's fit evaluates exactly what the renderer will
+//! show for that pixel. The geometric factors depend only on the frame, never on the
+//! BRDF parameters, so they are computed once ([`Geo`]).
+
+use std::time::Instant;
+
+use fabric_runtime::brdf::{ClothFrame, cloth_angles, cloth_fresnel_cos};
+use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
+use fabric_runtime::hybrid::HybridModel;
+use fabric_runtime::image::Image;
+use fabric_runtime::scene::{Light, Ray};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::directions::Pair;
+use crate::reference::rng::{Rng, mix64};
+use crate::reference::{MeasureScene, ReferenceError};
+
+/// The training renderings of the m configurations.
+#[derive(Clone, Debug)]
+pub struct TrainingImages {
+    pub pairs: Vec<Pair>,
+    /// Mean of the two halves per pair, texel order.
+    pub images: Vec<Image>,
+    /// The renders' own error: the relative RMSE of the mean estimated from the halves,
+    /// ‖A − B‖ / (2‖(A + B)/2‖) over all pairs (the floor no fit can go below).
+    pub noise: f64,
+    pub spp: u32,
+    pub seed: u64,
+    pub paths: u64,
+    pub seconds: f64,
+}
+
+/// Seeds of the two halves of a training render.
+pub fn half_seeds(seed: u64) -> [u64; 2] {
+    [mix64(seed ^ 0x6861_6c66_0001), mix64(seed ^ 0x6861_6c66_0002)]
+}
+
+/// Renders the training images: each pair as two halves of ⌈spp/2⌉ and ⌊spp/2⌋ samples.
+pub fn render_training(scene: &MeasureScene, pairs: &[Pair], spp: u32, seed: u64, advance: &(dyn Fn() + Sync)) -> Result<TrainingImages, ReferenceError> {
+    if spp < 2 {
+        return Err(ReferenceError::ZeroSamples);
+    }
+    let start = Instant::now();
+    let [sa, sb] = half_seeds(seed);
+    let (na, nb) = (spp.div_ceil(2), spp / 2);
+    let (mut images, mut paths, mut diff2, mut mean2) = (Vec::with_capacity(pairs.len()), 0u64, 0f64, 0f64);
+    for p in pairs {
+        let (a, st_a) = scene.render_image(p.wi, p.wo, na, sa)?;
+        let (b, st_b) = scene.render_image(p.wi, p.wo, nb, sb)?;
+        paths += st_a.paths + st_b.paths;
+        let (wa, wb) = (na as f32 / spp as f32, nb as f32 / spp as f32);
+        let mut mean = Image::new(a.width, a.height);
+        for (k, m) in mean.pixels.iter_mut().enumerate() {
+            *m = wa * a.pixels[k] + wb * b.pixels[k];
+            diff2 += (a.pixels[k] - b.pixels[k]).as_dvec3().length_squared();
+            mean2 += m.as_dvec3().length_squared();
+        }
+        images.push(mean);
+        advance();
+    }
+    let noise = if mean2 > 0.0 { 0.5 * (diff2 / mean2).sqrt() } else { 0.0 };
+    Ok(TrainingImages { pairs: pairs.to_vec(), images, noise, spp, seed, paths, seconds: start.elapsed().as_secs_f64() })
+}
+
+/// The BRDF-independent factors of one sample in the frame of the texel it hits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Geo {
+    /// θ_i + θ_o and φ_i + φ_o (Eq. 2–3).
+    pub theta_sum: f32,
+    pub phi_sum: f32,
+    /// cos φ_i, for the shadowing term.
+    pub cos_phi_i: f32,
+    /// cos θ_d, for the Fresnel term.
+    pub cos_d: f32,
+    /// max(n·ω_i, 0) · visibility · ray weight: the factor every term carries.
+    pub cos_i: f32,
+}
+
+impl Geo {
+    /// The factors for directions `wi`, `wo` in `frame`, times `weight`.
+    pub fn new(frame: &ClothFrame, wi: Vec3, wo: Vec3, weight: f32) -> Geo {
+        let (ai, ao) = (cloth_angles(frame, wi), cloth_angles(frame, wo));
+        Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * weight }
+    }
+}
+
+/// One probe ray of one pixel (or of one dense measurement).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Level-0 texel the model shows along the ray (index i + w·j).
+    pub hit: u32,
+    /// Which target: the training pixel (pair · texels + pixel), or a dense value.
+    pub target: u32,
+    pub geo: Geo,
+}
+
+/// How the samples are traced through the model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeOptions {
+    /// Rays per pixel (the first of the reference's own jitters).
+    pub rays: u32,
+    /// Height-field shadowing of the light in the model.
+    pub shadows: bool,
+}
+
+/// Probes the rays of `texels` for the pair (`wi`, `wo`): ray s of texel (x, y) is the
+/// reference's sample s of seed `jitter_seed` (the jitter `Rng::new(seed, texel, s)`
+/// draws first), through the model `model` (its height field and texel frames).
+/// Returns samples whose target is `target(texel index)`. Rays that miss the surface
+/// (none should on a periodic tile) are dropped.
+pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: Vec3, texels: &[u32], options: &ProbeOptions, jitter: &(dyn Fn(u32, u32) -> (f32, f32) + Sync), target: &(dyn Fn(u32) -> u32 + Sync)) -> Vec<Sample> {
+    let lights = [Light::directional(wi, Vec3::ONE)];
+    let render = CpuRenderOptions { periodic: true, shadows: if options.shadows { ShadowMode::On } else { ShadowMode::Off }, ..Default::default() };
+    let Ok(scene) = Scene::for_rays(model, &lights, render) else {
+        return Vec::new();
+    };
+    let (w, _) = measure.texels();
+    let frames: Vec<ClothFrame> = match &model.levels[0].surface {
+        fabric_runtime::hybrid::Surface::Clustered { texels, .. } => texels.iter().map(|t| t.frame()).collect(),
+        _ => return Vec::new(),
+    };
+    let weight = 1.0 / options.rays as f32;
+    texels
+        .par_iter()
+        .flat_map_iter(|&texel| {
+            let (x, y) = ((texel as usize % w), (texel as usize / w));
+            let scene = &scene;
+            let frames = &frames;
+            (0..options.rays).filter_map(move |s| {
+                let (u, v) = jitter(texel, s);
+                let (o, d) = measure.sample_ray(x, y, u, v, wo);
+                let probe = scene.probe_ray(&Ray::new(o, d), 0, false);
+                let hit = probe.surface?;
+                let index = hit.texel.0 + model.width() * hit.texel.1;
+                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, weight * hit.visibility) })
+            })
+        })
+        .collect()
+}
+
+/// The jitter of sample `s` of texel `texel` in `render_image(.., seed)`.
+pub fn image_jitter(seed: u64) -> impl Fn(u32, u32) -> (f32, f32) + Sync {
+    move |texel, s| Rng::new(seed, texel as u64, s as u64).next_2d()
+}
+
+/// The jitter of sample `s` of pair `pair` in `measure_texel(texel, .., seed)`.
+pub fn texel_jitter(seed: u64, texel: u32, pair: u32, s: u32) -> (f32, f32) {
+    let key = mix64(seed ^ mix64(texel as u64));
+    Rng::new(key, pair as u64, s as u64).next_2d()
+}

@@ -1,0 +1,271 @@
+//! `fabric bake DIR --out model.hyb`: bakes a fabric volume into a hybrid model (level
+//! 0: height field, texel frames, clustered fitted BRDFs), then measures it on held-out
+//! views against the reference. Writes the model, a JSON report and a side-by-side
+//! picture (reference | model | error) per held-out view.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use fabric_baker::bake::{BakeOptions, BakeProgress, SurfaceMask, bake};
+use fabric_baker::evaluate::{ViewError, ViewKind, evaluate_view, reference_medium};
+use fabric_baker::fit::directions::held_out_pairs;
+use fabric_baker::reference::Lookup;
+use fabric_baker::volume::load_fabric;
+use fabric_runtime::brdf::BrdfReading;
+use fabric_runtime::image::Image;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::args::MaterialArgs;
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum MaskArg {
+    /// Everything above the surface run (V and its halo).
+    Above,
+    /// Exactly the flyaway voxels V.
+    Flyaways,
+    /// Nothing removed.
+    None,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ReadingArg {
+    Bounded,
+    Width,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum LookupArg {
+    Trilinear,
+    Nearest,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// Fabric volume directory (density.vol, albedo.vol, orientation.vol, material.toml).
+    pub dir: PathBuf,
+    /// The hybrid model to write (.hyb).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The JSON report [default: the model's path with .json].
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    #[command(flatten)]
+    pub material: MaterialArgs,
+    /// Reference lookup of the volume.
+    #[arg(long, value_enum, default_value = "trilinear")]
+    pub lookup: LookupArg,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Training configurations m.
+    #[arg(long, default_value_t = 40)]
+    pub pairs: usize,
+    /// Samples per texel of each training rendering.
+    #[arg(long, default_value_t = 32)]
+    pub spp: u32,
+    /// K doubles from --k-min to --k-max while the training error falls.
+    #[arg(long, default_value_t = 4)]
+    pub k_min: usize,
+    #[arg(long, default_value_t = 32)]
+    pub k_max: usize,
+    /// Stop doubling K below this training error (relative RMSE).
+    #[arg(long, default_value_t = 0.05)]
+    pub delta: f64,
+    /// Specular lobes per cluster.
+    #[arg(long, default_value_t = 2)]
+    pub lobes: usize,
+    /// Fixed Fresnel index η.
+    #[arg(long, default_value_t = 1.5)]
+    pub eta: f32,
+    /// Reading of the printed Eqs. 2–3.
+    #[arg(long, value_enum, default_value = "bounded")]
+    pub reading: ReadingArg,
+    /// Fit without the height field's shadowing of the light.
+    #[arg(long)]
+    pub no_shadows: bool,
+    /// What the surface fit's renderings leave out.
+    #[arg(long, value_enum, default_value = "above")]
+    pub mask: MaskArg,
+    /// Scale of the fiber-level detail h0 − h in the normal map.
+    #[arg(long, default_value_t = 0.25)]
+    pub normal_detail: f32,
+    /// Held-out views to measure after the bake (0 skips the check).
+    #[arg(long, default_value_t = 8)]
+    pub held_out: usize,
+    /// Samples per pixel of the held-out references.
+    #[arg(long, default_value_t = 64)]
+    pub held_out_spp: u32,
+    /// Directory for the held-out pictures [default: beside the model, NAME-views/].
+    #[arg(long)]
+    pub pictures: Option<PathBuf>,
+}
+
+pub fn run(args: BakeArgs) -> Result<()> {
+    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: !args.no_shadows, ..Default::default() };
+    options.pairs.count = args.pairs;
+    options.fit.lobes = args.lobes;
+    options.fit.eta = args.eta;
+    options.fit.reading = match args.reading {
+        ReadingArg::Bounded => BrdfReading::Bounded,
+        ReadingArg::Width => BrdfReading::Width,
+    };
+    options.surface_mask = match args.mask {
+        MaskArg::Above => SurfaceMask::AboveSurface,
+        MaskArg::Flyaways => SurfaceMask::Flyaways,
+        MaskArg::None => SurfaceMask::None,
+    };
+    options.lookup = match args.lookup {
+        LookupArg::Trilinear => Lookup::Trilinear,
+        LookupArg::Nearest => Lookup::Nearest,
+    };
+    if !(args.normal_detail.is_finite() && (0.0..=4.0).contains(&args.normal_detail)) {
+        bail!("--normal-detail {}: must be in [0, 4]", args.normal_detail);
+    }
+    options.geometry.detail_strength = args.normal_detail;
+    options.validate()?;
+    options.geometry.validate()?;
+    if args.held_out_spp < 2 {
+        bail!("--held-out-spp {}: need at least 2 (two halves)", args.held_out_spp);
+    }
+    let overrides = args.material.overrides()?;
+
+    let start = Instant::now();
+    let volume = load_fabric(&args.dir, &overrides).with_context(|| format!("cannot load the fabric volume {}", args.dir.display()))?;
+    let [nx, ny, nz] = volume.dims();
+    println!("volume {}: {nx}x{ny}x{nz} voxels (loaded in {:.2} s)", args.dir.display(), start.elapsed().as_secs_f64());
+
+    let progress = Bars::default();
+    let result = bake(&volume, &options, &progress).with_context(|| format!("cannot bake {}", args.dir.display()))?;
+    progress.finish();
+    let r = &result.report;
+    for round in &r.rounds {
+        println!(
+            "K = {:>3}: training error {:.2}% per texel, {:.2}% over 4x4 blocks (median cluster residual {:.1}%), {:.1} s",
+            round.k,
+            100.0 * round.error,
+            100.0 * round.block_error,
+            100.0 * round.median_cluster_residual,
+            round.seconds
+        );
+    }
+    println!("kept K = {}; training-render noise floor {:.2}%; grazing pairs {:.1}%, others {:.1}%", r.k, 100.0 * r.noise_floor, 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);
+    for p in &r.cluster_problems {
+        println!("warning: cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
+    }
+    fabric_runtime::hybrid::format::write_file(&result.model, &args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
+    println!("wrote {} ({} bytes; input volume {} bytes)", args.out.display(), r.model_bytes, r.input_bytes);
+    let times: Vec<String> = r.stage_seconds.iter().map(|(s, t)| format!("{s} {t:.1}")).collect();
+    println!("stage times (s): {}; bake total {:.1} s", times.join(", "), r.total_seconds);
+
+    // Held-out views.
+    let mut views: Vec<ViewError> = Vec::new();
+    if args.held_out > 0 {
+        let pictures = args.pictures.clone().unwrap_or_else(|| sibling(&args.out, "-views"));
+        std::fs::create_dir_all(&pictures).with_context(|| format!("cannot create {}", pictures.display()))?;
+        let medium = reference_medium(&volume, options.lookup)?;
+        let pairs = held_out_pairs(&r.pairs, args.held_out, 60.0, 5.0, options.seed ^ 0x5eed);
+        let bar = stage_bar("held-out views", pairs.len() as u64);
+        for (v, pair) in pairs.iter().enumerate() {
+            // Every fourth view is a perspective point-light view.
+            let kind = if v % 4 == 3 { ViewKind::Perspective } else { ViewKind::Orthographic };
+            let (e, images) = evaluate_view(&volume, &medium, &result.model, pair, kind, nx.max(ny) as u32, args.held_out_spp, options.seed.wrapping_add(v as u64))?;
+            side_by_side(&images.reference, &images.model, &pictures.join(format!("view{v}.png")))?;
+            views.push(e);
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        println!("held-out views (model vs reference, relative RMSE):");
+        for (v, e) in views.iter().enumerate() {
+            println!(
+                "  view {v} {:?} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel (reference noise {:.1}%)",
+                e.kind,
+                e.pair.wi.z.acos().to_degrees(),
+                e.pair.wo.z.acos().to_degrees(),
+                100.0 * e.block_error,
+                100.0 * e.pixel_error,
+                100.0 * e.reference_noise
+            );
+        }
+        let worst = views.iter().map(|e| e.block_error).fold(0.0, f64::max);
+        let mean = views.iter().map(|e| e.block_error).sum::<f64>() / views.len().max(1) as f64;
+        println!("held-out error over 4x4 blocks: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+    }
+
+    let report_path = args.report.clone().unwrap_or_else(|| args.out.with_extension("json"));
+    let json = serde_json::json!({ "bake": r, "held_out": views });
+    std::fs::write(&report_path, serde_json::to_string_pretty(&json)?).with_context(|| format!("cannot write {}", report_path.display()))?;
+    println!("wrote {}", report_path.display());
+    Ok(())
+}
+
+/// `path` with `suffix` appended to its stem, as a directory beside it.
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "model".into());
+    path.with_file_name(format!("{stem}{suffix}"))
+}
+
+/// reference | model | |model − reference| (×4), one exposure chosen from the reference.
+fn side_by_side(reference: &Image, model: &Image, path: &Path) -> Result<()> {
+    let (w, h) = (reference.width, reference.height);
+    let mut out = Image::new(3 * w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (r, m) = (reference.get(x, y), model.get(x, y));
+            out.set(x, y, r);
+            out.set(w + x, y, m);
+            out.set(2 * w + x, y, 4.0 * (m - r).abs());
+        }
+    }
+    let mean = reference.mean().max(1e-6) as f32;
+    out.write(path, 0.4 / mean).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+fn stage_bar(name: &str, total: u64) -> ProgressBar {
+    let bar = ProgressBar::new(total);
+    bar.set_style(ProgressStyle::with_template("{prefix:>28} [{bar:40}] {pos}/{len} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
+    bar.set_prefix(name.to_string());
+    bar.enable_steady_tick(Duration::from_millis(200));
+    bar
+}
+
+/// One bar per bake stage (hidden when stderr is not a terminal).
+#[derive(Default)]
+struct Bars {
+    bar: Mutex<Option<ProgressBar>>,
+}
+
+impl Bars {
+    fn finish(&self) {
+        if let Ok(mut b) = self.bar.lock()
+            && let Some(bar) = b.take()
+        {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl BakeProgress for Bars {
+    fn begin(&self, stage: &str, total: u64) {
+        if let Ok(mut b) = self.bar.lock() {
+            if let Some(old) = b.take() {
+                old.finish_and_clear();
+            }
+            *b = Some(stage_bar(stage, total));
+        }
+    }
+
+    fn advance(&self, n: u64) {
+        if let Ok(b) = self.bar.lock()
+            && let Some(bar) = b.as_ref()
+        {
+            bar.inc(n);
+        }
+    }
+
+    fn end(&self) {
+        self.finish();
+    }
+}
