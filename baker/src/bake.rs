@@ -25,7 +25,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, Target, fit_cluster, predict};
+use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, Target, fit_cluster, predict, refine_texel};
 use crate::fit::directions::{Pair, PairOptions, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
@@ -72,6 +72,10 @@ pub struct BakeOptions {
     /// Dense measurement of each representative: pairs and samples per pair.
     pub dense_pairs: usize,
     pub dense_spp: u32,
+    /// After the cluster fits, refine each texel's k_d and k_j on its own samples
+    /// (ridge towards its cluster) and store level 0 per texel; `None` keeps the
+    /// paper's clustered level 0.
+    pub per_texel_ridge: Option<f64>,
 }
 
 impl Default for BakeOptions {
@@ -92,6 +96,7 @@ impl Default for BakeOptions {
             fit: ClusterFitOptions::default(),
             dense_pairs: 48,
             dense_spp: 32,
+            per_texel_ridge: Some(0.05),
         }
     }
 }
@@ -153,8 +158,12 @@ pub struct BakeReport {
     /// The training renderings' own relative error (from the two halves).
     pub noise_floor: f64,
     pub rounds: Vec<KRound>,
-    /// The K kept and its errors.
+    /// The K kept and its errors with the cluster BRDFs alone...
     pub k: usize,
+    pub cluster_error: f64,
+    pub cluster_block_error: f64,
+    /// ... and, with `per_texel`, after the per-texel refinement (what the model holds).
+    pub per_texel: bool,
     pub error: f64,
     pub block_error: f64,
     /// Training-image error split by pair kind and by grazing (either polar angle > 55°).
@@ -235,6 +244,18 @@ pub fn level0(g: &Geometry, clusters: &[u32], params: &[ClothParams]) -> Level {
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(g.normals[j], g.tangents[j], clusters.get(j).copied().unwrap_or(0) as u16)).collect();
     Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None }
+}
+
+/// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
+/// cluster's β, γ, a and η, every lobe in the texel's frame.
+pub fn level0_per_texel(g: &Geometry, params: &[ClothParams]) -> Level {
+    let mut table = BrdfTable::new();
+    for (j, p) in params.iter().enumerate() {
+        let (n, t) = (g.normals[j], g.tangents[j]);
+        let lobes: Vec<_> = p.lobes().iter().map(|l| (*l, n, t)).collect();
+        table.push_framed(p.kd, p.eta, p.a, &lobes);
+    }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None }
 }
 
 /// Bakes `volume` into a hybrid model (level 0).
@@ -362,7 +383,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
             .collect();
         progress.end();
         // The model's training images, and its error against them.
-        let predictions = predict_images(&samples, cluster, &fits, options.fit.reading, &training, texels);
+        let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, options.fit.reading, &training, texels, options.probe_rays);
         let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
         let mut residuals: Vec<f64> = fits.iter().filter(|f| f.samples > 0).map(|f| f.relative_residual()).collect();
         residuals.sort_by(|a, b| a.total_cmp(b));
@@ -379,10 +400,29 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
         k = (2 * k).min(options.k_max).min(texels);
     }
     stage("clustering and fitting", t_fit);
-    let (error, clusters, fits, predictions) = best.expect("at least one round");
+    let (cluster_error, clusters, fits, predictions) = best.expect("at least one round");
     let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
     let k = params.len();
-    let block_error = rounds.iter().find(|r| r.k == k).map_or(error, |r| r.block_error);
+    let cluster_block_error = rounds.iter().find(|r| r.k == k).map_or(cluster_error, |r| r.block_error);
+
+    // Per-texel refinement of the linear parameters.
+    let t = Instant::now();
+    let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
+        Some(ridge) => {
+            progress.begin("per-texel refinement", 1);
+            let mut per_texel: Vec<Vec<Target>> = vec![Vec::new(); texels];
+            for s in &samples {
+                per_texel[s.hit as usize].push(Target { geo: s.geo, radiance: target_of(s) });
+            }
+            let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
+            let predictions = predict_images(&samples, &|hit| &refined[hit], options.fit.reading, &training, texels, options.probe_rays);
+            let (e, be) = image_errors(&predictions, &training.images, nx, ny);
+            progress.end();
+            (Some(refined), predictions, e, be)
+        }
+        None => (None, predictions, cluster_error, cluster_block_error),
+    };
+    stage("per-texel refinement", t);
 
     let cluster_problems = fits
         .iter()
@@ -392,7 +432,11 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     let (error_by_kind, error_grazing, error_non_grazing) = split_errors(&predictions, &training);
 
     let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}", env!("CARGO_PKG_VERSION"), error, training.noise);
-    let model = HybridModel { tile, height, levels: vec![level0(&geometry, &clusters, &params)], meta: meta(error as f32, note) };
+    let level = match &texel_params {
+        Some(p) => level0_per_texel(&geometry, p),
+        None => level0(&geometry, &clusters, &params),
+    };
+    let model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
     model.validate()?;
     let model_bytes = fabric_runtime::hybrid::format::to_bytes(&model).map(|b| b.len() as u64).unwrap_or(0);
     let report = BakeReport {
@@ -403,6 +447,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
         noise_floor: training.noise,
         rounds,
         k,
+        cluster_error,
+        cluster_block_error,
+        per_texel: texel_params.is_some(),
         error,
         block_error,
         error_by_kind,
@@ -422,14 +469,15 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     Ok(Bake { model, report, geometry, training, clusters, fits, predictions })
 }
 
-/// The model's image for each training pair: per pixel, the sum of its samples'
-/// predictions (each carries its ray weight).
-fn predict_images(samples: &[Sample], cluster: &[u32], fits: &[ClusterFit], reading: BrdfReading, training: &TrainingImages, texels: usize) -> Vec<Image> {
+/// The model's image for each training pair: per pixel, the mean of its rays'
+/// predictions (a ray that missed counts as black, as in the renderer).
+fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p ClothParams, reading: BrdfReading, training: &TrainingImages, texels: usize, rays: u32) -> Vec<Image> {
+    let weight = 1.0 / rays as f32;
     let mut images: Vec<Image> = training.images.iter().map(|i| Image::new(i.width, i.height)).collect();
     for s in samples {
-        let p = &fits[cluster[s.hit as usize] as usize].params;
+        let p = params_of(s.hit as usize);
         let image = &mut images[s.target as usize / texels];
-        image.pixels[s.target as usize % texels] += predict(p, &s.geo, reading);
+        image.pixels[s.target as usize % texels] += weight * predict(p, &s.geo, reading);
     }
     images
 }

@@ -164,6 +164,62 @@ pub fn predict(p: &ClothParams, g: &Geo, reading: BrdfReading) -> Vec3 {
     r
 }
 
+/// Refines the linear parameters (k_d, k_j per RGB channel) of one texel on its own
+/// samples, the non-linear ones (β_j, γ_j, a, η) kept from its cluster's `cluster`:
+/// non-negative least squares with a ridge pulling towards the cluster's values,
+/// λ = `ridge` · (mean diagonal of the Gram matrix) — a texel seen by few rays stays
+/// near its cluster, one seen by many follows its own data.
+pub fn refine_texel(samples: &[Target], cluster: &ClothParams, ridge: f64, reading: BrdfReading) -> ClothParams {
+    if samples.is_empty() {
+        return *cluster;
+    }
+    let lobes = cluster.lobes();
+    let n = 1 + lobes.len();
+    let beta: Vec<f32> = lobes.iter().map(|l| l.beta).collect();
+    let gamma: Vec<f32> = lobes.iter().map(|l| l.gamma).collect();
+    let o = ClusterFitOptions { lobes: lobes.len(), eta: cluster.eta, reading, ..Default::default() };
+    let mut gram = vec![0.0f64; n * n];
+    let mut atb = [vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]];
+    let mut btb = [0.0f64; 3];
+    let mut row = [0.0f64; 8];
+    for s in samples {
+        basis(&s.geo, &beta, &gamma, cluster.a, o.eta, reading, &mut row[..n]);
+        for r in 0..n {
+            for c in 0..n {
+                gram[r * n + c] += row[r] * row[c];
+            }
+        }
+        let y = s.radiance.as_dvec3().to_array();
+        for ch in 0..3 {
+            for r in 0..n {
+                atb[ch][r] += row[r] * y[ch];
+            }
+            btb[ch] += y[ch] * y[ch];
+        }
+    }
+    let lambda = ridge * (0..n).map(|r| gram[r * n + r]).sum::<f64>() / n as f64;
+    let prior = |ch: usize, r: usize| -> f64 { if r == 0 { cluster.kd[ch] as f64 } else { lobes[r - 1].k[ch] as f64 } };
+    for r in 0..n {
+        gram[r * n + r] += lambda;
+    }
+    let mut out = *cluster;
+    for ch in 0..3 {
+        let b: Vec<f64> = (0..n).map(|r| atb[ch][r] + lambda * prior(ch, r)).collect();
+        let prior2: f64 = (0..n).map(|r| prior(ch, r) * prior(ch, r)).sum();
+        let Ok(sol) = nnls_gram(&gram, &b, btb[ch] + lambda * prior2, n) else {
+            return *cluster;
+        };
+        if !sol.x.iter().all(|v| v.is_finite()) {
+            return *cluster;
+        }
+        out.kd[ch] = (sol.x[0] as f32).clamp(0.0, K_MAX);
+        for j in 0..lobes.len() {
+            out.lobes[j].k[ch] = (sol.x[1 + j] as f32).clamp(0.0, K_MAX);
+        }
+    }
+    out
+}
+
 /// Fits one cluster's BRDF (k_d, η fixed, a, and `lobes` lobes) to `samples`.
 pub fn fit_cluster(samples: &[Target], o: &ClusterFitOptions) -> ClusterFit {
     let target2: f64 = samples.iter().map(|s| s.radiance.as_dvec3().length_squared()).sum();

@@ -80,19 +80,20 @@ pub struct Geo {
     pub cos_phi_i: f32,
     /// cos θ_d, for the Fresnel term.
     pub cos_d: f32,
-    /// max(n·ω_i, 0) · visibility · ray weight: the factor every term carries.
+    /// max(n·ω_i, 0) · visibility: the factor every term carries.
     pub cos_i: f32,
 }
 
 impl Geo {
-    /// The factors for directions `wi`, `wo` in `frame`, times `weight`.
-    pub fn new(frame: &ClothFrame, wi: Vec3, wo: Vec3, weight: f32) -> Geo {
+    /// The factors for directions `wi`, `wo` in `frame`, with the light's `visibility`.
+    pub fn new(frame: &ClothFrame, wi: Vec3, wo: Vec3, visibility: f32) -> Geo {
         let (ai, ao) = (cloth_angles(frame, wi), cloth_angles(frame, wo));
-        Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * weight }
+        Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * visibility }
     }
 }
 
-/// One probe ray of one pixel (or of one dense measurement).
+/// One probe ray of one pixel (or of one dense measurement). A pixel of the model is
+/// the mean of its rays' radiance; the fit matches each ray to the pixel's value.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sample {
     /// Level-0 texel the model shows along the ray (index i + w·j).
@@ -127,7 +128,6 @@ pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: 
         fabric_runtime::hybrid::Surface::Clustered { texels, .. } => texels.iter().map(|t| t.frame()).collect(),
         _ => return Vec::new(),
     };
-    let weight = 1.0 / options.rays as f32;
     texels
         .par_iter()
         .flat_map_iter(|&texel| {
@@ -140,7 +140,7 @@ pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: 
                 let probe = scene.probe_ray(&Ray::new(o, d), 0, false);
                 let hit = probe.surface?;
                 let index = hit.texel.0 + model.width() * hit.texel.1;
-                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, weight * hit.visibility) })
+                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, hit.visibility) })
             })
         })
         .collect()

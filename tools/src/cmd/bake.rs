@@ -91,6 +91,13 @@ pub struct BakeArgs {
     /// Scale of the fiber-level detail h0 − h in the normal map.
     #[arg(long, default_value_t = 0.25)]
     pub normal_detail: f32,
+    /// Keep the paper's clustered level 0 (one BRDF per cluster) instead of refining
+    /// each texel's k_d and k_j on its own samples.
+    #[arg(long)]
+    pub clustered: bool,
+    /// Ridge of the per-texel refinement towards the cluster's values (relative).
+    #[arg(long, default_value_t = 0.05)]
+    pub ridge: f64,
     /// Held-out views to measure after the bake (0 skips the check).
     #[arg(long, default_value_t = 8)]
     pub held_out: usize,
@@ -124,6 +131,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--normal-detail {}: must be in [0, 4]", args.normal_detail);
     }
     options.geometry.detail_strength = args.normal_detail;
+    if !(args.ridge.is_finite() && args.ridge >= 0.0) {
+        bail!("--ridge {}: must be a non-negative number", args.ridge);
+    }
+    options.per_texel_ridge = (!args.clustered).then_some(args.ridge);
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -150,7 +161,17 @@ pub fn run(args: BakeArgs) -> Result<()> {
             round.seconds
         );
     }
-    println!("kept K = {}; training-render noise floor {:.2}%; grazing pairs {:.1}%, others {:.1}%", r.k, 100.0 * r.noise_floor, 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);
+    println!("kept K = {}; training-render noise floor {:.2}%", r.k, 100.0 * r.noise_floor);
+    if r.per_texel {
+        println!(
+            "per-texel refinement: training error {:.2}% per texel, {:.2}% over 4x4 blocks (clusters alone: {:.2}%, {:.2}%)",
+            100.0 * r.error,
+            100.0 * r.block_error,
+            100.0 * r.cluster_error,
+            100.0 * r.cluster_block_error
+        );
+    }
+    println!("training error on grazing pairs (a polar angle > 55°) {:.1}%, on the others {:.1}%", 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);
     for p in &r.cluster_problems {
         println!("warning: cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
     }

@@ -1,0 +1,60 @@
+//! The baker's probe (`cpu::probe`) sees what the CPU renderer shows: the same surface
+//! hit, the texel under it, the same light visibility, and `measure_image` equals the
+//! renderer's radiance along the same rays.
+
+use fabric_runtime::cpu::probe::measure_image;
+use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
+use fabric_runtime::hybrid::examples::synthetic_model;
+use fabric_runtime::scene::{Light, Ray};
+use glam::Vec3;
+
+#[test]
+fn the_probe_hits_the_texel_the_renderer_shows() {
+    let model = synthetic_model(32, 7);
+    let wi = Vec3::new(0.5, -0.3, 0.6).normalize();
+    let lights = [Light::directional(wi, Vec3::ONE)];
+    let options = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let scene = Scene::for_rays(&model, &lights, options.clone()).unwrap();
+    let (o, s) = (model.tile.origin, model.tile.size);
+    let mut hits = 0;
+    let mut shadowed = 0;
+    for k in 0..2000u32 {
+        // Oblique rays from the top plane, as the measurement traces them.
+        let (u, v) = ((k % 47) as f32 / 47.0, (k % 53) as f32 / 53.0);
+        let d = Vec3::new(0.6 * ((k % 7) as f32 - 3.0) / 3.0, 0.5 * ((k % 5) as f32 - 2.0) / 2.0, -1.0).normalize();
+        let ray = Ray::new(Vec3::new(o.x + u * s.x, o.y + v * s.y, model.tile.top_z), d);
+        let trace = scene.trace_ray(&ray, 0);
+        let probe = scene.probe_ray(&ray, 0, true);
+        assert_eq!(probe.surface.map(|h| h.point), trace.surface_t.map(|t| ray.at(t)), "ray {k}");
+        if let Some(h) = probe.surface {
+            hits += 1;
+            let p = ray.at(trace.surface_t.unwrap());
+            assert_eq!(h.texel, scene.texel_at(p, 0));
+            let (blocked, _) = scene.tracer.occluded(p, wi, f32::INFINITY, options.max_steps);
+            assert_eq!(h.visibility, if blocked { 0.0 } else { 1.0 });
+            shadowed += blocked as u32;
+        }
+    }
+    assert_eq!(hits, 2000, "a periodic tile is always hit");
+    assert!(shadowed > 0, "the test should see some shadowed hits");
+}
+
+#[test]
+fn measure_image_is_the_renderers_radiance_along_the_given_rays() {
+    let model = synthetic_model(16, 3);
+    let wi = Vec3::new(-0.2, 0.4, 0.8).normalize();
+    let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+    let (o, texel, top) = (model.tile.origin, model.texel_size(), model.tile.top_z);
+    let ray = |x: u32, y: u32, s: u32| Ray::new(Vec3::new(o.x + (x as f32 + 0.25 + 0.5 * s as f32) * texel.x, o.y + (y as f32 + 0.5) * texel.y, top), -wo);
+    let options = CpuRenderOptions::default();
+    let image = measure_image(&model, &options, wi, 0, 2, &ray).unwrap();
+    let lights = [Light::directional(wi, Vec3::ONE)];
+    let scene = Scene::for_rays(&model, &lights, CpuRenderOptions { periodic: true, ..options.clone() }).unwrap();
+    for (x, y) in [(0, 0), (5, 9), (15, 15)] {
+        let want = 0.5 * (scene.trace_ray(&ray(x, y, 0), 0).radiance + scene.trace_ray(&ray(x, y, 1), 0).radiance);
+        assert_eq!(image.get(x, y), want);
+    }
+    assert!(image.mean() > 0.0);
+    assert!(measure_image(&model, &options, wi, 0, 0, &ray).is_err());
+    assert!(measure_image(&model, &options, wi, 9, 1, &ray).is_err());
+}
