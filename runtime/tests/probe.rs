@@ -11,7 +11,7 @@ use glam::Vec3;
 #[test]
 fn the_probe_hits_the_texel_the_renderer_shows() {
     let model = synthetic_model(32, 7);
-    let wi = Vec3::new(0.5, -0.3, 0.6).normalize();
+    let wi = Vec3::new(0.9, -0.3, 0.08).normalize();
     let lights = [Light::directional(wi, Vec3::ONE)];
     let options = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
     let scene = Scene::for_rays(&model, &lights, options.clone()).unwrap();

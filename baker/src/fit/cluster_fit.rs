@@ -268,7 +268,7 @@ mod tests {
     /// Samples of a known BRDF over random directions in random frames.
     fn synthetic(params: &ClothParams, reading: BrdfReading, noise: f32, count: usize) -> Vec<Target> {
         let mut rng = crate::reference::rng::Rng::new(5, 6, 7);
-        let mut hemi = |rng: &mut crate::reference::rng::Rng| {
+        let hemi = |rng: &mut crate::reference::rng::Rng| {
             let z = 0.15 + 0.85 * rng.next_f32();
             let p = std::f32::consts::TAU * rng.next_f32();
             let s = (1.0 - z * z).sqrt();
