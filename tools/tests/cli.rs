@@ -139,3 +139,21 @@ fn hybrid_models_render_on_the_cpu_and_inspect() {
         assert!(!o.status.success() && !stderr.contains("panicked") && stderr.contains("corrupt.hyb"), "{args:?}: {stderr}");
     }
 }
+
+#[test]
+fn bake_refuses_bad_input_with_a_clear_error() {
+    let out = tmp("never.hyb");
+    let cases: [(&[&str], &str); 4] = [
+        (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
+        (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
+        (&["bake", "/nonexistent/fabric", "--k-min", "8", "--k-max", "4"], "k_min"),
+        (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
+    ];
+    for (args, says) in cases {
+        let o = fabric().args(args).arg("--out").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked") && stderr.contains(says), "{args:?}: {stderr}");
+    }
+    assert!(!out.exists());
+}
