@@ -76,6 +76,14 @@ pub struct BakeOptions {
     /// (ridge towards its cluster) and store level 0 per texel; `None` keeps the
     /// paper's clustered level 0.
     pub per_texel_ridge: Option<f64>,
+    /// Scale of the normal map's slope (its tilt from +Z): 1 keeps the geometry stage's
+    /// normals, 0 makes every normal +Z. Light reaches a volumetric yarn's sides that
+    /// face away from it, which a fully tilted normal's max(n·ω_i, 0) cannot show.
+    pub normal_slope: f32,
+    /// How much of the fiber-level relief h0 − h the model's height field keeps:
+    /// surface = h + relief·(h0 − h). 0 is the paper's smooth h; more relief gives the
+    /// march the parallax and the shadows of the yarns' crowns and valleys.
+    pub relief: f32,
 }
 
 impl Default for BakeOptions {
@@ -97,6 +105,8 @@ impl Default for BakeOptions {
             dense_pairs: 48,
             dense_spp: 32,
             per_texel_ridge: Some(0.05),
+            normal_slope: 1.0,
+            relief: 0.0,
         }
     }
 }
@@ -175,6 +185,8 @@ pub struct BakeReport {
     pub shadows: bool,
     pub surface_mask: SurfaceMask,
     pub normal_detail: f32,
+    pub normal_slope: f32,
+    pub relief: f32,
     pub flyaway_voxels: usize,
     pub stage_seconds: Vec<(String, f64)>,
     pub total_seconds: f64,
@@ -226,10 +238,30 @@ impl BakeOptions {
     }
 }
 
-/// The height h as world z per texel (what the measurement rays aim at).
-fn world_heights(volume: &FabricVolume, g: &Geometry) -> Vec<f32> {
+/// Scales every normal's slope by `c` (n ∝ (c·n_x/n_z, c·n_y/n_z, 1)) and makes the
+/// tangents perpendicular to the new normals again.
+pub fn scale_normal_slopes(g: &mut Geometry, c: f32) {
+    if c == 1.0 {
+        return;
+    }
+    for (n, t) in g.normals.iter_mut().zip(g.tangents.iter_mut()) {
+        let z = n.z.max(1e-3);
+        let m = Vec3::new(c * n.x / z, c * n.y / z, 1.0).normalize();
+        let tp = *t - m * t.dot(m);
+        *t = if tp.length_squared() > 1e-12 { tp.normalize() } else { fabric_runtime::brdf::cloth_reference_tangent(m) };
+        *n = m;
+    }
+}
+
+/// The model's surface in voxels: h + relief·(h0 − h), within the volume.
+pub fn surface_heights(g: &Geometry, relief: f32) -> Vec<f32> {
+    g.h.iter().zip(&g.h0).map(|(h, h0)| (h + relief * (h0 - h)).clamp(0.0, g.depth as f32)).collect()
+}
+
+/// Heights in voxels as world z per texel (what the measurement rays aim at).
+fn world_heights(volume: &FabricVolume, heights: &[f32]) -> Vec<f32> {
     let (z0, vz) = (volume.bbox().min.z, volume.voxel_size().z);
-    g.h.iter().map(|h| z0 + h * vz).collect()
+    heights.iter().map(|h| z0 + h * vz).collect()
 }
 
 /// The model's level 0 with the geometry's frames, cluster `clusters[j]` per texel and
@@ -268,7 +300,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     // 1. Geometry.
     let t = Instant::now();
     progress.begin("geometry", 1);
-    let geometry = extract_geometry(volume, &options.geometry)?;
+    let mut geometry = extract_geometry(volume, &options.geometry)?;
+    scale_normal_slopes(&mut geometry, options.normal_slope);
+    let surface = surface_heights(&geometry, options.relief);
     progress.end();
     stage("geometry", t);
     let [nx, ny, nz] = volume.dims();
@@ -280,7 +314,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     // The model's geometry: tile, height field, texel frames.
     let bbox = volume.bbox();
     let tile = Tile::from_source(bbox, [nx as u32, ny as u32, nz as u32]);
-    let height = HeightField::from_voxel_heights(nx as u32, ny as u32, &geometry.h, nz as u32, &tile)?;
+    let height = HeightField::from_voxel_heights(nx as u32, ny as u32, &surface, nz as u32, &tile)?;
     let meta = |fit_error: f32, note: String| BakeMetadata {
         reading: options.fit.reading,
         fitted_with_shadowing: options.shadows,
@@ -295,7 +329,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
 
     // 2. Training renderings of the surface (mask applied).
     let t = Instant::now();
-    let heights = world_heights(volume, &geometry);
+    let heights = world_heights(volume, &surface);
     let mask: Option<Vec<bool>> = match options.surface_mask {
         SurfaceMask::AboveSurface => Some(geometry.above_surface_mask()),
         SurfaceMask::Flyaways => Some(geometry.flyaway_mask().to_bools()),
@@ -460,6 +494,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
         shadows: options.shadows,
         surface_mask: options.surface_mask,
         normal_detail: options.geometry.detail_strength,
+        normal_slope: options.normal_slope,
+        relief: options.relief,
         flyaway_voxels: geometry.flyaways.len(),
         stage_seconds,
         total_seconds: start.elapsed().as_secs_f64(),

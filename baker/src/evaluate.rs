@@ -44,6 +44,11 @@ pub struct ViewError {
     /// Relative RMSE per pixel and over 4×4 blocks.
     pub pixel_error: f64,
     pub block_error: f64,
+    /// Relative RMSE over 16×16 blocks (what remains when parallax and fiber
+    /// placement are forgiven: the angular error).
+    pub block16_error: f64,
+    /// mean(model) / mean(reference): a global bias shows here.
+    pub mean_ratio: f64,
     /// The reference's own relative error at the block level (from its two halves).
     pub reference_noise: f64,
     pub reference_seconds: f64,
@@ -97,7 +102,9 @@ pub fn evaluate_view(volume: &FabricVolume, medium: &TracedMedium, model: &Hybri
     let (pixel_error, block_error) = relative_errors(&model_image, &reference);
     let (ba, bb) = (block_mean(&a, 4), block_mean(&b, 4));
     let (_, noise) = relative_errors(&ba, &bb);
-    let e = ViewError { pair: *pair, kind, pixel_error, block_error, reference_noise: 0.5 * noise, reference_seconds, model_seconds };
+    let mean_ratio = model_image.mean() / reference.mean().max(1e-30);
+    let (block16_error, _) = relative_errors(&block_mean(&model_image, 16), &block_mean(&reference, 16));
+    let e = ViewError { pair: *pair, kind, pixel_error, block_error, block16_error, mean_ratio, reference_noise: 0.5 * noise, reference_seconds, model_seconds };
     Ok((e, ViewImages { reference, model: model_image }))
 }
 

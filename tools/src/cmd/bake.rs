@@ -91,6 +91,12 @@ pub struct BakeArgs {
     /// Scale of the fiber-level detail h0 − h in the normal map.
     #[arg(long, default_value_t = 0.25)]
     pub normal_detail: f32,
+    /// Scale of the normals' tilt from +Z (1 = the geometry stage's normals, 0 = flat).
+    #[arg(long, default_value_t = 1.0)]
+    pub normal_slope: f32,
+    /// Fraction of the fiber-level relief h0 − h kept in the model's height field.
+    #[arg(long, default_value_t = 0.0)]
+    pub relief: f32,
     /// Keep the paper's clustered level 0 (one BRDF per cluster) instead of refining
     /// each texel's k_d and k_j on its own samples.
     #[arg(long)]
@@ -131,6 +137,14 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--normal-detail {}: must be in [0, 4]", args.normal_detail);
     }
     options.geometry.detail_strength = args.normal_detail;
+    if !(args.normal_slope.is_finite() && (0.0..=2.0).contains(&args.normal_slope)) {
+        bail!("--normal-slope {}: must be in [0, 2]", args.normal_slope);
+    }
+    options.normal_slope = args.normal_slope;
+    if !(args.relief.is_finite() && (0.0..=1.0).contains(&args.relief)) {
+        bail!("--relief {}: must be in [0, 1]", args.relief);
+    }
+    options.relief = args.relief;
     if !(args.ridge.is_finite() && args.ridge >= 0.0) {
         bail!("--ridge {}: must be a non-negative number", args.ridge);
     }
@@ -200,12 +214,14 @@ pub fn run(args: BakeArgs) -> Result<()> {
         println!("held-out views (model vs reference, relative RMSE):");
         for (v, e) in views.iter().enumerate() {
             println!(
-                "  view {v} {:?} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel (reference noise {:.1}%)",
+                "  view {v} {:?} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%)",
                 e.kind,
                 e.pair.wi.z.acos().to_degrees(),
                 e.pair.wo.z.acos().to_degrees(),
                 100.0 * e.block_error,
                 100.0 * e.pixel_error,
+                100.0 * e.block16_error,
+                e.mean_ratio,
                 100.0 * e.reference_noise
             );
         }
