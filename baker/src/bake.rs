@@ -180,6 +180,8 @@ pub struct BakeReport {
     pub error_by_kind: Vec<(String, f64)>,
     pub error_grazing: f64,
     pub error_non_grazing: f64,
+    /// Per training pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
+    pub pair_errors: Vec<(f64, f64)>,
     pub cluster_problems: Vec<ClusterProblem>,
     pub reading: String,
     pub shadows: bool,
@@ -489,6 +491,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
         error_by_kind,
         error_grazing,
         error_non_grazing,
+        pair_errors: predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect(),
         cluster_problems,
         reading: options.fit.reading.name().into(),
         shadows: options.shadows,

@@ -32,8 +32,10 @@ use super::simplex::{NelderMead, nelder_mead_restarts};
 pub struct ClusterFitOptions {
     /// Specular lobes (1..=4 at level 0; the paper uses 2).
     pub lobes: usize,
-    /// Fixed Fresnel index.
+    /// Fresnel index: fixed, or the start of its search with `fit_eta`.
     pub eta: f32,
+    /// Search η too (in [1.05, 4], as ln(η − 1)).
+    pub fit_eta: bool,
     pub reading: BrdfReading,
     /// Range of β (radians).
     pub beta_range: [f32; 2],
@@ -54,6 +56,7 @@ impl Default for ClusterFitOptions {
         ClusterFitOptions {
             lobes: 2,
             eta: 1.5,
+            fit_eta: false,
             reading: BrdfReading::Bounded,
             beta_range: [0.02, 1.2],
             gamma_range: [0.05, 20.0],
@@ -92,16 +95,21 @@ impl ClusterFit {
     }
 }
 
-/// Non-linear parameters from the search vector x = (ln β_j…, ln γ_j…, √a).
-fn decode(x: &[f64], o: &ClusterFitOptions) -> Option<(Vec<f32>, Vec<f32>, f32)> {
+/// Non-linear parameters from the search vector x = (ln β_j…, ln γ_j…, √a[, ln(η − 1)]).
+fn decode(x: &[f64], o: &ClusterFitOptions) -> Option<(Vec<f32>, Vec<f32>, f32, f32)> {
     let n = o.lobes;
     let beta: Vec<f32> = x[..n].iter().map(|v| v.exp() as f32).collect();
     let gamma: Vec<f32> = x[n..2 * n].iter().map(|v| v.exp() as f32).collect();
     let a = (x[2 * n] * x[2 * n]) as f32;
-    let inside = beta.iter().all(|b| *b >= o.beta_range[0] && *b <= o.beta_range[1]) && gamma.iter().all(|g| *g >= o.gamma_range[0] && *g <= o.gamma_range[1]) && x[2 * n] >= 0.0 && a <= o.a_max;
+    let eta = if o.fit_eta { 1.0 + x[2 * n + 1].exp() as f32 } else { o.eta };
+    let inside = beta.iter().all(|b| *b >= o.beta_range[0] && *b <= o.beta_range[1])
+        && gamma.iter().all(|g| *g >= o.gamma_range[0] && *g <= o.gamma_range[1])
+        && x[2 * n] >= 0.0
+        && a <= o.a_max
+        && (1.05..=fabric_runtime::brdf::ETA_MAX).contains(&eta);
     // Lobes ordered narrow to wide, so that restarts do not wander between permutations.
     let ordered = beta.windows(2).all(|w| w[0] <= w[1]);
-    (inside && ordered).then_some((beta, gamma, a))
+    (inside && ordered).then_some((beta, gamma, a, eta))
 }
 
 /// The basis values of one sample: [c, F·shadow·S_1·c, …].
@@ -116,14 +124,14 @@ fn basis(g: &Geo, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfRe
 
 /// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
 /// matrix. Returns (coefficients [channel][basis], Σ residual²).
-fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
+fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
     let n = 1 + beta.len();
     let mut gram = vec![0.0f64; n * n];
     let mut atb = [vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]];
     let mut btb = [0.0f64; 3];
     let mut row = [0.0f64; 8];
     for s in samples.iter().step_by(stride.max(1)) {
-        basis(&s.geo, beta, gamma, a, o.eta, o.reading, &mut row[..n]);
+        basis(&s.geo, beta, gamma, a, eta, o.reading, &mut row[..n]);
         for r in 0..n {
             for c in r..n {
                 gram[r * n + c] += row[r] * row[c];
@@ -234,7 +242,7 @@ pub fn fit_cluster(samples: &[Target], o: &ClusterFitOptions) -> ClusterFit {
     }
     let stride = samples.len().div_ceil(o.search_samples.max(1));
     let objective = |x: &[f64]| match decode(x, o) {
-        Some((beta, gamma, a)) => solve_linear(samples, stride, &beta, &gamma, a, o).map_or(f64::INFINITY, |(_, r)| r),
+        Some((beta, gamma, a, eta)) => solve_linear(samples, stride, &beta, &gamma, a, eta, o).map_or(f64::INFINITY, |(_, r)| r),
         None => f64::INFINITY,
     };
     // Starts: narrow-to-wide lobes, φ falloff moderate, mild shadowing.
@@ -242,22 +250,25 @@ pub fn fit_cluster(samples: &[Target], o: &ClusterFitOptions) -> ClusterFit {
     let mut x0 = betas.clone();
     x0.extend((0..n).map(|_| 1.0f64.ln()));
     x0.push(1.0);
-    let step: Vec<f64> = (0..2 * n).map(|_| 0.5).chain([0.5]).collect();
+    if o.fit_eta {
+        x0.push(((o.eta as f64).max(1.1) - 1.0).ln());
+    }
+    let step: Vec<f64> = vec![0.5; x0.len()];
     let nm = NelderMead { max_evals: o.max_evals, ..Default::default() };
     let (best_x, evals) = match nelder_mead_restarts(objective, &x0, &step, &nm, o.restarts) {
         Ok(m) if m.f.is_finite() => (m.x, m.evals),
         Ok(_) => (x0.clone(), 0),
         Err(e) => return fallback(format!("search failed: {e}")),
     };
-    let Some((beta, gamma, a)) = decode(&best_x, o) else {
+    let Some((beta, gamma, a, eta)) = decode(&best_x, o) else {
         return fallback("search left the parameter box".into());
     };
-    let Some((coef, residual2)) = solve_linear(samples, 1, &beta, &gamma, a, o) else {
+    let Some((coef, residual2)) = solve_linear(samples, 1, &beta, &gamma, a, eta, o) else {
         return fallback("linear solve failed".into());
     };
     let k = |j: usize| Vec3::new(coef[0][j] as f32, coef[1][j] as f32, coef[2][j] as f32).clamp(Vec3::ZERO, Vec3::splat(K_MAX));
     let lobes: Vec<ClothLobe> = (0..n).map(|j| ClothLobe { k: k(1 + j), beta: beta[j], gamma: gamma[j] }).collect();
-    ClusterFit { params: ClothParams::new(k(0), o.eta, a, &lobes), residual2, target2, evals, samples: samples.len(), problem: None }
+    ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), problem: None }
 }
 
 #[cfg(test)]

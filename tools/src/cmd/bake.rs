@@ -79,6 +79,9 @@ pub struct BakeArgs {
     /// Fixed Fresnel index η.
     #[arg(long, default_value_t = 1.5)]
     pub eta: f32,
+    /// Search η per cluster instead of fixing it.
+    #[arg(long)]
+    pub fit_eta: bool,
     /// Reading of the printed Eqs. 2–3.
     #[arg(long, value_enum, default_value = "bounded")]
     pub reading: ReadingArg,
@@ -120,6 +123,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.pairs.count = args.pairs;
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;
+    options.fit.fit_eta = args.fit_eta;
     options.fit.reading = match args.reading {
         ReadingArg::Bounded => BrdfReading::Bounded,
         ReadingArg::Width => BrdfReading::Width,
