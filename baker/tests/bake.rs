@@ -28,6 +28,12 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     eprintln!("rounds {:?}", r.rounds);
     eprintln!("K {} training error {:.3} (blocks {:.3}), noise {:.3}", r.k, r.error, r.block_error, r.noise_floor);
     assert!(r.cluster_problems.is_empty(), "{:?}", r.cluster_problems);
+    // The twill has flyaways; their fit lowers the error of the pixels that see them.
+    let f = r.flyaways.as_ref().expect("the twill has flyaway fibers");
+    eprintln!("flyaways {f:?}");
+    assert!(f.voxels > 0 && f.pixels > 0 && f.problem.is_none(), "{f:?}");
+    assert!(f.error_fitted < f.error_without, "{f:?}");
+    assert!(b.model.has_flyaways());
     assert!(r.k >= 2 && r.rounds.len() >= 1 && r.error.is_finite());
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);

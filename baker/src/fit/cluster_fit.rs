@@ -57,7 +57,9 @@ impl Default for ClusterFitOptions {
             lobes: 2,
             eta: 1.5,
             fit_eta: false,
-            reading: BrdfReading::Bounded,
+            // Measured: held-out error over 4×4 blocks, twill 30.6% (width) vs 32.1%
+            // (bounded), silk 40.7% vs 42.7% (128×128×32, 24 pairs, 16 spp).
+            reading: BrdfReading::Width,
             beta_range: [0.02, 1.2],
             gamma_range: [0.05, 20.0],
             a_max: 16.0,

@@ -8,6 +8,7 @@
 pub mod cluster_fit;
 pub mod directions;
 pub mod features;
+pub mod flyaways;
 pub mod kmeans;
 pub mod nnls;
 pub mod samples;

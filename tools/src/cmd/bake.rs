@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use fabric_baker::bake::{BakeOptions, BakeProgress, SurfaceMask, bake};
+use fabric_baker::bake::{BakeOptions, BakeProgress, FlyawayOptions, SurfaceMask, bake};
+use fabric_baker::fit::flyaways::FlyawayAlpha;
 use fabric_baker::evaluate::{ViewError, ViewKind, evaluate_view, reference_medium};
 use fabric_baker::fit::directions::held_out_pairs;
 use fabric_baker::reference::Lookup;
@@ -28,6 +29,12 @@ pub enum MaskArg {
     Flyaways,
     /// Nothing removed.
     None,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum AlphaArg {
+    Full,
+    Density,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -83,7 +90,7 @@ pub struct BakeArgs {
     #[arg(long)]
     pub fit_eta: bool,
     /// Reading of the printed Eqs. 2–3.
-    #[arg(long, value_enum, default_value = "bounded")]
+    #[arg(long, value_enum, default_value = "width")]
     pub reading: ReadingArg,
     /// Fit without the height field's shadowing of the light.
     #[arg(long)]
@@ -100,6 +107,18 @@ pub struct BakeArgs {
     /// Fraction of the fiber-level relief h0 − h kept in the model's height field.
     #[arg(long, default_value_t = 0.0)]
     pub relief: f32,
+    /// Leave the flyaway fibers out of the model.
+    #[arg(long)]
+    pub no_flyaways: bool,
+    /// Most flyaway BRDF clusters.
+    #[arg(long, default_value_t = 4)]
+    pub flyaway_clusters: usize,
+    /// Coverage of a level-0 flyaway voxel: opaque, or ρ/ρ_solid.
+    #[arg(long, value_enum, default_value = "density")]
+    pub flyaway_alpha: AlphaArg,
+    /// Samples per texel of the full-volume training renderings (flyaway fit).
+    #[arg(long, default_value_t = 16)]
+    pub flyaway_spp: u32,
     /// Keep the paper's clustered level 0 (one BRDF per cluster) instead of refining
     /// each texel's k_d and k_j on its own samples.
     #[arg(long)]
@@ -153,6 +172,20 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--ridge {}: must be a non-negative number", args.ridge);
     }
     options.per_texel_ridge = (!args.clustered).then_some(args.ridge);
+    if args.flyaway_clusters == 0 || args.flyaway_clusters > 256 {
+        bail!("--flyaway-clusters {}: must be in 1..=256", args.flyaway_clusters);
+    }
+    if args.flyaway_spp < 2 {
+        bail!("--flyaway-spp {}: need at least 2 (two halves)", args.flyaway_spp);
+    }
+    options.flyaways = (!args.no_flyaways).then_some(FlyawayOptions {
+        clusters: args.flyaway_clusters,
+        spp: args.flyaway_spp,
+        alpha: match args.flyaway_alpha {
+            AlphaArg::Full => FlyawayAlpha::Full,
+            AlphaArg::Density => FlyawayAlpha::Density,
+        },
+    });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -190,6 +223,17 @@ pub fn run(args: BakeArgs) -> Result<()> {
         );
     }
     println!("training error on grazing pairs (a polar angle > 55°) {:.1}%, on the others {:.1}%", 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);
+    if let Some(f) = &r.flyaways {
+        println!(
+            "flyaways: {} voxels in {} clusters; {} training pixels cross them: error {:.1}% with them black, {:.1}% fitted{}",
+            f.voxels,
+            f.clusters,
+            f.pixels,
+            100.0 * f.error_without,
+            100.0 * f.error_fitted,
+            f.problem.as_ref().map(|p| format!(" ({p})")).unwrap_or_default()
+        );
+    }
     for p in &r.cluster_problems {
         println!("warning: cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
     }
