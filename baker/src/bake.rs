@@ -31,7 +31,8 @@ use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
-use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry};
+use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
+use crate::progress::{Progress, stage as begin_stage};
 use crate::reference::rng::mix64;
 use crate::reference::{Lookup, MeasureScene, ReferenceError};
 use crate::volume::FabricVolume;
@@ -147,16 +148,6 @@ pub enum BakeError {
     #[error("option {name} = {value}: {reason}")]
     BadOption { name: &'static str, value: String, reason: String },
 }
-
-/// Progress of a bake, stage by stage (the command draws bars; tests pass [`NoBakeProgress`]).
-pub trait BakeProgress: Sync {
-    fn begin(&self, _stage: &str, _total: u64) {}
-    fn advance(&self, _n: u64) {}
-    fn end(&self) {}
-}
-
-pub struct NoBakeProgress;
-impl BakeProgress for NoBakeProgress {}
 
 /// One round of Algorithm 1's loop.
 #[derive(Clone, Debug, Serialize)]
@@ -316,7 +307,7 @@ pub fn level0_per_texel(g: &Geometry, params: &[ClothParams]) -> Level {
 }
 
 /// Bakes `volume` into a hybrid model (level 0).
-pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakeProgress) -> Result<Bake, BakeError> {
+pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progress) -> Result<Bake, BakeError> {
     options.validate()?;
     let start = Instant::now();
     let mut stage_seconds: Vec<(String, f64)> = Vec::new();
@@ -324,11 +315,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
 
     // 1. Geometry.
     let t = Instant::now();
-    progress.begin("geometry", 1);
-    let mut geometry = extract_geometry(volume, &options.geometry)?;
+    let mut geometry = extract_geometry_with(volume, &options.geometry, progress)?;
     scale_normal_slopes(&mut geometry, options.normal_slope);
     let surface = surface_heights(&geometry, options.relief);
-    progress.end();
     stage("geometry", t);
     let [nx, ny, nz] = volume.dims();
     let texels = nx * ny;
@@ -362,9 +351,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     };
     let measure = MeasureScene::new(volume, options.lookup, Some(&heights), mask.as_deref())?;
     let pairs = training_pairs(&PairOptions { seed: mix64(options.seed ^ options.pairs.seed), ..options.pairs.clone() });
-    progress.begin("training renderings", pairs.len() as u64);
-    let training = render_training(&measure, &pairs, options.spp, options.seed, &|| progress.advance(1))?;
-    progress.end();
+    let bar = begin_stage(progress, "training renderings", pairs.len() as u64);
+    let training = render_training(&measure, &pairs, options.spp, options.seed, &|| bar.advance(1))?;
+    bar.finish();
     stage("training renderings", t);
 
     // 3. Samples: the training rays through the model.
@@ -372,14 +361,14 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     let probe = ProbeOptions { rays: options.probe_rays, shadows: options.shadows };
     let all_texels: Vec<u32> = (0..texels as u32).collect();
     let jitter = image_jitter(half_seeds(options.seed)[0]);
-    progress.begin("probing the model", pairs.len() as u64);
+    let bar = begin_stage(progress, "probing the model", pairs.len() as u64);
     let mut samples: Vec<Sample> = Vec::new();
     for (c, p) in pairs.iter().enumerate() {
         let base = (c * texels) as u32;
         samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &all_texels, &probe, &jitter, &|j| base + j));
-        progress.advance(1);
+        bar.advance(1);
     }
-    progress.end();
+    bar.finish();
     let target_of = |s: &Sample| training.images[s.target as usize / texels].pixels[s.target as usize % texels];
     stage("probing", t);
 
@@ -395,13 +384,13 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     let t_fit = Instant::now();
     loop {
         let t_round = Instant::now();
-        progress.begin(&format!("K = {k}: clustering"), 1);
+        let bar = begin_stage(progress, &format!("K = {k}: clustering"), 1);
         let km = kmeans(&features.data, features.dim, k, &KMeansOptions { seed: options.seed, ..Default::default() }).map_err(|e| BakeError::Cluster(e.to_string()))?;
         let reps = representatives(&features.data, features.dim, &km);
-        progress.end();
+        bar.finish();
         // Dense measurement of new representatives.
         let new_reps: Vec<u32> = reps.iter().map(|&r| r as u32).filter(|r| !dense_cache.contains_key(r)).collect();
-        progress.begin(&format!("K = {k}: dense measurement"), new_reps.len() as u64);
+        let bar = begin_stage(progress, &format!("K = {k}: dense measurement"), new_reps.len() as u64);
         let mut dense_paths = 0;
         for &rep in &new_reps {
             let (x, y) = (rep as usize % nx, rep as usize / nx);
@@ -416,9 +405,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
                 rep_samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &[rep], &probe, &jitter, &|_| index));
             }
             dense_cache.insert(rep, rep_samples);
-            progress.advance(1);
+            bar.advance(1);
         }
-        progress.end();
+        bar.finish();
         // Gather each cluster's targets: training samples by the texel hit, and the dense
         // samples of its representative.
         let cluster = &km.assignment;
@@ -431,16 +420,16 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
                 targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
             }
         }
-        progress.begin(&format!("K = {k}: fitting"), k as u64);
+        let bar = begin_stage(progress, &format!("K = {k}: fitting"), k as u64);
         let fits: Vec<ClusterFit> = targets
             .par_iter()
             .map(|t| {
                 let f = fit_cluster(t, &options.fit);
-                progress.advance(1);
+                bar.advance(1);
                 f
             })
             .collect();
-        progress.end();
+        bar.finish();
         // The model's training images, and its error against them.
         let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, options.fit.reading, &training, texels, options.probe_rays);
         let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
@@ -468,7 +457,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
     let t = Instant::now();
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
-            progress.begin("per-texel refinement", 1);
+            let bar = begin_stage(progress, "per-texel refinement", 1);
             let mut per_texel: Vec<Vec<Target>> = vec![Vec::new(); texels];
             for s in &samples {
                 per_texel[s.hit as usize].push(Target { geo: s.geo, radiance: target_of(s) });
@@ -476,7 +465,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
             let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
             let predictions = predict_images(&samples, &|hit| &refined[hit], options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
-            progress.end();
+            bar.finish();
             (Some(refined), predictions, e, be)
         }
         None => (None, predictions, cluster_error, cluster_block_error),
@@ -511,12 +500,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn BakePro
         let solid = geometry.density.solid;
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &vec![shape; kf], fo.alpha)?);
         let full = MeasureScene::new(volume, options.lookup, Some(&heights), None)?;
-        progress.begin("flyaways: training renderings", pairs.len() as u64);
-        let full_training = render_training(&full, &pairs, fo.spp.max(2), mix64(options.seed ^ 0x666c79), &|| progress.advance(1))?;
-        progress.end();
-        progress.begin("flyaways: fitting", 1);
+        let bar = begin_stage(progress, "flyaways: training renderings", pairs.len() as u64);
+        let full_training = render_training(&full, &pairs, fo.spp.max(2), mix64(options.seed ^ 0x666c79), &|| bar.advance(1))?;
+        bar.finish();
+        let bar = begin_stage(progress, "flyaways: fitting", 1);
         let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &surface_of, &shape, kf, options.fit.reading);
-        progress.end();
+        bar.finish();
         rep.voxels = geometry.flyaways.len();
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
         stage("flyaways", t);

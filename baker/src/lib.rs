@@ -9,5 +9,6 @@ pub mod evaluate;
 pub mod fit;
 pub mod generate;
 pub mod geometry;
+pub mod progress;
 pub mod reference;
 pub mod volume;

@@ -2,7 +2,8 @@
 //! round-trips through the file and renders close to the reference on a held-out view;
 //! degenerate volumes end with a clear result or error.
 
-use fabric_baker::bake::{BakeError, BakeOptions, NoBakeProgress, bake};
+use fabric_baker::bake::{BakeError, BakeOptions, bake};
+use fabric_baker::progress::NoProgress;
 use fabric_baker::evaluate::{ViewKind, evaluate_view, reference_medium};
 use fabric_baker::fit::directions::{PairOptions, held_out_pairs};
 use fabric_baker::generate::{Preset, generate};
@@ -22,7 +23,7 @@ fn quick() -> BakeOptions {
 #[test]
 fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     let volume = generate(&Preset::Twill.params(), [48, 48, 16], 3).unwrap();
-    let b = bake(&volume, &quick(), &NoBakeProgress).unwrap();
+    let b = bake(&volume, &quick(), &NoProgress).unwrap();
     b.model.validate().unwrap();
     let r = &b.report;
     eprintln!("rounds {:?}", r.rounds);
@@ -55,14 +56,14 @@ fn bakes_are_deterministic_for_any_thread_count() {
     let volume = generate(&Preset::Plain.params(), [32, 32, 12], 5).unwrap();
     let mut o = quick();
     o.k_max = 4;
-    let run = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| bake(&volume, &o, &NoBakeProgress).unwrap().model);
+    let run = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| bake(&volume, &o, &NoProgress).unwrap().model);
     assert_eq!(run(1), run(2));
 }
 
 #[test]
 fn an_empty_volume_is_a_clear_error() {
     let v = FabricVolume::new([16, 16, 8], Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.5)), MaterialParams { density_scale: 10.0, roughness: 0.3 });
-    let e = bake(&v, &quick(), &NoBakeProgress).err().expect("an empty volume cannot be baked");
+    let e = bake(&v, &quick(), &NoProgress).err().expect("an empty volume cannot be baked");
     assert!(matches!(e, BakeError::Geometry(_)), "{e}");
     assert!(e.to_string().contains("empty"), "{e}");
 }
@@ -80,7 +81,7 @@ fn a_uniform_slab_bakes_with_every_cluster_accounted_for() {
     }
     let mut o = quick();
     o.geometry.fiber_thickness = Some(1.0);
-    let b = bake(&v, &o, &NoBakeProgress).unwrap();
+    let b = bake(&v, &o, &NoProgress).unwrap();
     eprintln!("slab: K {} error {:.3} problems {:?}", b.report.k, b.report.error, b.report.cluster_problems);
     // Identical texels: clusters beyond the first may be empty, and then the report says so.
     let used: std::collections::BTreeSet<u32> = b.clusters.iter().copied().collect();
@@ -93,5 +94,5 @@ fn a_uniform_slab_bakes_with_every_cluster_accounted_for() {
     assert!(b.report.error < 0.5, "a flat uniform slab fits: {}", b.report.error);
     // Nonsense options are refused before any work.
     let bad = BakeOptions { spp: 1, ..quick() };
-    assert!(matches!(bake(&v, &bad, &NoBakeProgress), Err(BakeError::BadOption { name: "spp", .. })));
+    assert!(matches!(bake(&v, &bad, &NoProgress), Err(BakeError::BadOption { name: "spp", .. })));
 }

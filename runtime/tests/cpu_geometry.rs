@@ -5,7 +5,7 @@
 use fabric_runtime::brdf::{ClothParams, cloth_fiber_frame};
 use fabric_runtime::cpu::shading::texel_response;
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, Scene, ShadowMode};
-use fabric_runtime::hybrid::{FlyawayVoxel, HybridModel, Tile, examples};
+use fabric_runtime::hybrid::{FlyawayInput, HybridModel, Tile, examples};
 use fabric_runtime::scene::{Camera, Light, Projection, Ray};
 use glam::{Vec2, Vec3};
 
@@ -242,7 +242,7 @@ fn a_single_flyaway_voxel_in_front_of_the_surface() {
     let mut m = examples::uniform_model(10, 10, 1, tile(0.5), |_, _| 0.4, &surface, Vec3::Z, Vec3::X).unwrap();
     let fiber = Vec3::new(1.0, 0.4, 0.2);
     let fly_params = examples::silk_params();
-    examples::add_flyaways(&mut m, 0, &[(4, 5, FlyawayVoxel { depth: 2, alpha: 1.0, tangent: fiber, param: 0 })], &fly_params).unwrap();
+    examples::add_flyaways(&mut m, 0, &[(4, 5, FlyawayInput { depth: 2, alpha: 1.0, tangent: fiber, param: 0 })], &fly_params).unwrap();
     let light = Light::directional(Vec3::new(0.3, -0.2, 1.0), Vec3::splat(2.0));
     let lights = [light];
     let decoded_fly = m.levels[0].flyaways.as_ref().unwrap().table.brdf_in_frame(0, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X));

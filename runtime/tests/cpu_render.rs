@@ -5,7 +5,7 @@
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
 use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
-use fabric_runtime::hybrid::{BrdfTable, FlyawayVoxel, Surface, Tile, examples, level_dims};
+use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
 
@@ -126,7 +126,7 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
     let m0 = level_coded_model(16, 3);
     let mut m = m0.clone();
     let fly = ClothParams::new(Vec3::new(0.9, 0.1, 0.1), 1.5, 0.0, &[]);
-    examples::add_flyaways(&mut m, 1, &[(3, 4, FlyawayVoxel { depth: 1, alpha: 0.5, tangent: Vec3::X, param: 0 })], &fly).unwrap();
+    examples::add_flyaways(&mut m, 1, &[(3, 4, FlyawayInput { depth: 1, alpha: 0.5, tangent: Vec3::X, param: 0 })], &fly).unwrap();
     let light = Light::directional(Vec3::new(0.2, 0.1, 1.0), Vec3::ONE);
     let (s1, dx1) = (0.02f32, 0.125f32);
     let edge = (dx1 * dx1 * s1).cbrt();
@@ -250,7 +250,7 @@ fn extreme_but_valid_models_render_finite() {
     );
     let depth = |x: f32, y: f32| 0.15 + 0.14 * (40.0 * x).sin() * (37.0 * y).cos();
     let mut m = examples::uniform_model(16, 16, 5, tile(), depth, &params, Vec3::new(0.0, 0.0, -1.0), Vec3::Z).unwrap();
-    examples::add_flyaways(&mut m, 0, &[(1, 1, FlyawayVoxel { depth: 0, alpha: 1.0, tangent: Vec3::Z, param: 0 })], &params).unwrap();
+    examples::add_flyaways(&mut m, 0, &[(1, 1, FlyawayInput { depth: 0, alpha: 1.0, tangent: Vec3::Z, param: 0 })], &params).unwrap();
     for (theta, phi) in [(0.0f32, 0.0f32), (89.0, 45.0)] {
         let cam = Camera::orbit_orthographic(theta, phi, Vec3::new(0.0, 0.0, 0.3), 3.0, 1.5, 24, 24);
         let lights = [Light::directional(fabric_runtime::scene::direction_from_angles(89.9, 10.0), Vec3::splat(1e3)), Light::Point { position: Vec3::new(0.0, 0.0, 0.3), intensity: Vec3::ONE }];

@@ -357,7 +357,7 @@ fn fuzz_seeds_are_current() {
     let params = examples::silk_params();
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
-    examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayVoxel { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
+    examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
     for (name, model) in [("sample.hyb", sample()), ("small.hyb", small)] {
         let bytes = format::to_bytes(&model).unwrap();
         let path = dir.join(name);

@@ -19,7 +19,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_fiber_frame};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
-use fabric_runtime::hybrid::{BrdfTable, FlyawayVoxel as NodeVoxel, Flyaways, HybridModel, ModelError};
+use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError};
 use fabric_runtime::scene::{Light, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -91,12 +91,12 @@ pub fn flyaway_level(fv: &FlyawayVolume, solid_density: f32, assignment: &[u32],
         (fv.column_start[column]..fv.column_start[column + 1])
             .filter_map(|v| {
                 let voxel = &fv.voxels[v];
-                let depth = NodeVoxel::depth_of_voxel_layer(voxel.z, nz as u32)?;
+                let depth = FlyawayInput::depth_of_voxel_layer(voxel.z, nz as u32)?;
                 let a = match alpha {
                     FlyawayAlpha::Full => 1.0,
                     FlyawayAlpha::Density => (voxel.density / solid_density.max(1e-30)).clamp(1.0 / 65535.0 * 2.0, 1.0),
                 };
-                Some(NodeVoxel { depth, alpha: a, tangent: voxel.orientation, param: assignment[v] })
+                Some(FlyawayInput { depth, alpha: a, tangent: voxel.orientation, param: assignment[v] })
             })
             .collect()
     })

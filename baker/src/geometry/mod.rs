@@ -198,20 +198,7 @@ impl Stage {
     }
 }
 
-/// Progress reports from a long extraction (the CLI draws bars from them). Called from
-/// worker threads; every method has a no-op default.
-pub trait Progress: Sync {
-    /// A stage starts; `total` units of work (rows or items) follow.
-    fn begin(&self, _stage: Stage, _total: u64) {}
-    /// `n` more units of the current stage are done.
-    fn advance(&self, _n: u64) {}
-    /// The current stage is done.
-    fn end(&self, _stage: Stage, _seconds: f64) {}
-}
-
-/// A [`Progress`] that reports nothing.
-pub struct NoProgress;
-impl Progress for NoProgress {}
+pub use crate::progress::{NoProgress, Progress};
 
 /// Wall time of one stage.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -335,13 +322,13 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
     let mut warnings = Vec::new();
     let mut timed = |stage: Stage, start: Instant| {
         let seconds = start.elapsed().as_secs_f64();
-        progress.end(stage, seconds);
+        progress.end(stage.name(), seconds);
         times.push(StageTime { stage: stage.name().into(), seconds });
     };
 
     // 1. Which voxels are non-empty, and what a fully covered voxel's density is.
     let t = Instant::now();
-    progress.begin(Stage::DensityScale, nz as u64);
+    progress.begin(Stage::DensityScale.name(), nz as u64);
     let density = heightmap::density_scale(volume, options.density_threshold, progress)?;
     timed(Stage::DensityScale, t);
 
@@ -350,7 +337,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
     let (fiber_thickness, fiber_thickness_auto) = match options.fiber_thickness {
         Some(d) => (d, false),
         None => {
-            progress.begin(Stage::FiberThickness, 2 * ny as u64);
+            progress.begin(Stage::FiberThickness.name(), 2 * ny as u64);
             match heightmap::estimate_fiber_thickness(volume, &density, progress) {
                 Some(d) => (d, true),
                 None => {
@@ -367,7 +354,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
 
     // 3. h0: the first run thicker than one fiber, scanning down (paper §5.2).
     let t = Instant::now();
-    progress.begin(Stage::HeightMap, ny as u64);
+    progress.begin(Stage::HeightMap.name(), ny as u64);
     let run_threshold = options.surface_run_factor * fiber_thickness;
     let mut hm = heightmap::detailed_height(volume, &density, run_threshold, progress);
     if hm.hole_columns == nx * ny {
@@ -394,13 +381,13 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
 
     // 4. V: everything non-empty above the surface.
     let t = Instant::now();
-    progress.begin(Stage::Flyaways, ny as u64);
+    progress.begin(Stage::Flyaways.name(), ny as u64);
     let flyaways = flyaways::extract_flyaways(volume, &density, &hm.surface_top, fiber_thickness, progress);
     timed(Stage::Flyaways, t);
 
     // 5. Filter size from the autocorrelations of h0 (Eq. 4).
     let t = Instant::now();
-    progress.begin(Stage::Autocorrelation, 2);
+    progress.begin(Stage::Autocorrelation.name(), 2);
     let ac = autocorrelation::autocorrelate(&hm.h0, nx, ny);
     let peaks = match &ac {
         Some(ac) => [autocorrelation::first_peak(&ac.c0, ac.null_sd[0], &options.peak_search), autocorrelation::first_peak(&ac.c1, ac.null_sd[1], &options.peak_search)],
@@ -432,7 +419,7 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
 
     // 6. h: anisotropic periodic Gaussian blur of h0.
     let t = Instant::now();
-    progress.begin(Stage::Blur, 2);
+    progress.begin(Stage::Blur.name(), 2);
     let sigma = filter_size.map(|s| s * options.sigma_per_filter_size);
     let h = blur::periodic_gaussian(&hm.h0, nx, ny, sigma);
     progress.advance(2);
@@ -440,14 +427,14 @@ pub fn extract_geometry_with(volume: &FabricVolume, options: &GeometryOptions, p
 
     // 7. n: h's slope plus the fiber-level detail h0 − h.
     let t = Instant::now();
-    progress.begin(Stage::Normals, 1);
+    progress.begin(Stage::Normals.name(), 1);
     let normals = normals::normal_map(&h, &hm.h0, nx, ny, volume.voxel_size(), options.detail_strength);
     progress.advance(1);
     timed(Stage::Normals, t);
 
     // 8. t: the fiber axis at the surface, in the tangent plane.
     let t = Instant::now();
-    progress.begin(Stage::Tangents, ny as u64);
+    progress.begin(Stage::Tangents.name(), ny as u64);
     let tm = tangents::tangent_map(volume, &density, &hm.surface_top, &normals, options.tangent_depth, progress);
     if tm.fallback_texels > 0 {
         warnings.push(format!(

@@ -4,7 +4,7 @@
 use glam::{Vec2, Vec3};
 
 use super::error::ModelError;
-use super::flyaway::{FlyawayVoxel, Flyaways};
+use super::flyaway::{FlyawayInput, Flyaways};
 use super::lobe::{BrdfTable, ClusteredTexel};
 use super::model::{BakeMetadata, HeightField, HybridModel, Level, Surface, Tile, level_dims, max_levels};
 use crate::brdf::{BrdfReading, ClothLobe, ClothParams};
@@ -78,11 +78,11 @@ pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f
 
 /// Gives `level` of `model` flyaway voxels: `voxels` lists (i, j, voxel) at that level,
 /// all using BRDF `params` (one table entry).
-pub fn add_flyaways(model: &mut HybridModel, level: usize, voxels: &[(u32, u32, FlyawayVoxel)], params: &ClothParams) -> Result<(), ModelError> {
+pub fn add_flyaways(model: &mut HybridModel, level: usize, voxels: &[(u32, u32, FlyawayInput)], params: &ClothParams) -> Result<(), ModelError> {
     let mut table = BrdfTable::new();
     table.push(params);
     let l = &mut model.levels[level];
-    let f = Flyaways::from_columns(l.width, l.height, table, |i, j| voxels.iter().filter(|(vi, vj, _)| (*vi, *vj) == (i, j)).map(|(_, _, v)| FlyawayVoxel { param: 0, ..*v }).collect())?;
+    let f = Flyaways::from_columns(l.width, l.height, table, |i, j| voxels.iter().filter(|(vi, vj, _)| (*vi, *vj) == (i, j)).map(|(_, _, v)| FlyawayInput { param: 0, ..*v }).collect())?;
     l.flyaways = Some(f);
     model.validate()
 }
@@ -132,9 +132,9 @@ pub fn sample_model() -> HybridModel {
     let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
     let mut model = HybridModel { tile, height, levels, meta };
     let fly = silk_params();
-    let mut voxels0: Vec<(u32, u32, FlyawayVoxel)> = (0..9u32).map(|k| ((k * 5) % w, (k * 3) % h, FlyawayVoxel { depth: (k % 4) as u16, alpha: 1.0, tangent: Vec3::new(1.0, k as f32 * 0.1, 0.3), param: 0 })).collect();
-    voxels0.push((0, 0, FlyawayVoxel { depth: 6, alpha: 1.0, tangent: Vec3::Z, param: 0 }));
-    let voxels1: Vec<(u32, u32, FlyawayVoxel)> = vec![(1, 1, FlyawayVoxel { depth: 0, alpha: 0.375, tangent: Vec3::Y, param: 0 }), (1, 1, FlyawayVoxel { depth: 2, alpha: 0.125, tangent: Vec3::X, param: 0 })];
+    let mut voxels0: Vec<(u32, u32, FlyawayInput)> = (0..9u32).map(|k| ((k * 5) % w, (k * 3) % h, FlyawayInput { depth: (k % 4) as u16, alpha: 1.0, tangent: Vec3::new(1.0, k as f32 * 0.1, 0.3), param: 0 })).collect();
+    voxels0.push((0, 0, FlyawayInput { depth: 6, alpha: 1.0, tangent: Vec3::Z, param: 0 }));
+    let voxels1: Vec<(u32, u32, FlyawayInput)> = vec![(1, 1, FlyawayInput { depth: 0, alpha: 0.375, tangent: Vec3::Y, param: 0 }), (1, 1, FlyawayInput { depth: 2, alpha: 0.125, tangent: Vec3::X, param: 0 })];
     // The builders cannot fail on these inputs; a failure shows up in validate() below.
     let _ = add_flyaways(&mut model, 0, &voxels0, &fly);
     let _ = add_flyaways(&mut model, 1, &voxels1, &fly);
@@ -225,7 +225,7 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
         let mut table = BrdfTable::new();
         table.push(&fly);
         let f = Flyaways::from_columns(l.width, l.height, table, |i, j| {
-            cells.range((i, j, 0)..=(i, j, u16::MAX)).map(|(&(_, _, k), &(c, t))| FlyawayVoxel { depth: k, alpha: (c as f32 / children).min(1.0), tangent: t, param: 0 }).collect()
+            cells.range((i, j, 0)..=(i, j, u16::MAX)).map(|(&(_, _, k), &(c, t))| FlyawayInput { depth: k, alpha: (c as f32 / children).min(1.0), tangent: t, param: 0 }).collect()
         });
         l.flyaways = f.ok();
     }

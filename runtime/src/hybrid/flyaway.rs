@@ -52,7 +52,7 @@ impl FlyawayNode {
 
 /// A flyaway voxel as a baker or a test describes it (the builder's input).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FlyawayVoxel {
+pub struct FlyawayInput {
     /// Voxel index below the top plane at this level.
     pub depth: u16,
     /// Coverage in (0, 1].
@@ -73,7 +73,7 @@ pub struct Flyaways {
     pub table: BrdfTable,
 }
 
-impl FlyawayVoxel {
+impl FlyawayInput {
     /// The level-0 depth index of source voxel layer `z` (0 at the bottom face) of a
     /// volume `zres` voxels thick: layers are counted down from the top plane.
     pub fn depth_of_voxel_layer(z: u32, zres: u32) -> Option<u16> {
@@ -85,7 +85,7 @@ impl Flyaways {
     /// Builds the lists of a `width`×`height` level from each column's voxels (in any
     /// order; they are sorted by depth). Nodes are stored column by column, top down, so
     /// a list is contiguous in memory. Errors: two voxels at one depth, α outside (0, 1].
-    pub fn from_columns(width: u32, height: u32, table: BrdfTable, mut column: impl FnMut(u32, u32) -> Vec<FlyawayVoxel>) -> Result<Flyaways, ModelError> {
+    pub fn from_columns(width: u32, height: u32, table: BrdfTable, mut column: impl FnMut(u32, u32) -> Vec<FlyawayInput>) -> Result<Flyaways, ModelError> {
         let mut heads = Vec::with_capacity(width as usize * height as usize);
         let mut nodes: Vec<FlyawayNode> = Vec::new();
         for j in 0..height {
@@ -201,8 +201,8 @@ mod tests {
         t
     }
 
-    fn voxel(depth: u16) -> FlyawayVoxel {
-        FlyawayVoxel { depth, alpha: 1.0, tangent: Vec3::X, param: 0 }
+    fn voxel(depth: u16) -> FlyawayInput {
+        FlyawayInput { depth, alpha: 1.0, tangent: Vec3::X, param: 0 }
     }
 
     #[test]
@@ -249,7 +249,7 @@ mod tests {
     #[test]
     fn builder_rejects_duplicates_and_bad_alpha() {
         assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![voxel(1), voxel(1)]).is_err());
-        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayVoxel { alpha: 0.0, ..voxel(1) }]).is_err());
-        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayVoxel { alpha: f32::NAN, ..voxel(1) }]).is_err());
+        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayInput { alpha: 0.0, ..voxel(1) }]).is_err());
+        assert!(Flyaways::from_columns(1, 1, table(), |_, _| vec![FlyawayInput { alpha: f32::NAN, ..voxel(1) }]).is_err());
     }
 }

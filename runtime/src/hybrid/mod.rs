@@ -34,7 +34,7 @@ pub mod packing;
 pub mod stats;
 
 pub use error::{ModelError, TableKind};
-pub use flyaway::{FlyawayNode, FlyawayVoxel, Flyaways, NO_NODE};
+pub use flyaway::{FlyawayNode, FlyawayInput, Flyaways, NO_NODE};
 pub use lobe::{BrdfHeader, BrdfTable, ClusteredTexel, PackedLobe, TexelBrdf, decode_frame, encode_frame};
 pub use model::{BakeMetadata, HeightField, HybridModel, Level, MAX_DIM, Surface, Tile, level_dims, max_levels};
 pub use stats::{LevelStats, ModelStats, model_stats};

@@ -306,7 +306,7 @@ impl HybridModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::hybrid::FlyawayVoxel;
+    use crate::hybrid::FlyawayInput;
 
     #[test]
     fn source_conventions_convert_to_depths_below_the_top() {
@@ -319,8 +319,8 @@ mod tests {
         assert!((h.depth_fraction(0, 0) * tile.height_scale - 0.25).abs() < 1.6 / 65535.0);
         assert_eq!(h.depth_fraction(1, 0), 0.0);
         assert!(HeightField::from_voxel_heights(1, 1, &[-1.0], 64, &tile).is_err(), "below the bottom face");
-        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(63, 64), Some(0));
-        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(0, 64), Some(63));
-        assert_eq!(FlyawayVoxel::depth_of_voxel_layer(64, 64), None);
+        assert_eq!(FlyawayInput::depth_of_voxel_layer(63, 64), Some(0));
+        assert_eq!(FlyawayInput::depth_of_voxel_layer(0, 64), Some(63));
+        assert_eq!(FlyawayInput::depth_of_voxel_layer(64, 64), None);
     }
 }

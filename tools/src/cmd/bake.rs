@@ -4,12 +4,11 @@
 //! picture (reference | model | error) per held-out view.
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use fabric_baker::bake::{BakeOptions, BakeProgress, FlyawayOptions, SurfaceMask, bake};
+use fabric_baker::bake::{BakeOptions, FlyawayOptions, SurfaceMask, bake};
 use fabric_baker::fit::flyaways::FlyawayAlpha;
 use fabric_baker::evaluate::{ViewError, ViewKind, evaluate_view, reference_medium};
 use fabric_baker::fit::directions::held_out_pairs;
@@ -17,9 +16,9 @@ use fabric_baker::reference::Lookup;
 use fabric_baker::volume::load_fabric;
 use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::image::Image;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::args::MaterialArgs;
+use crate::progress::{Bars, stage_bar};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MaskArg {
@@ -242,11 +241,22 @@ pub fn run(args: BakeArgs) -> Result<()> {
     let times: Vec<String> = r.stage_seconds.iter().map(|(s, t)| format!("{s} {t:.1}")).collect();
     println!("stage times (s): {}; bake total {:.1} s", times.join(", "), r.total_seconds);
 
+    let pictures = args.pictures.clone().unwrap_or_else(|| sibling(&args.out, "-views"));
+    std::fs::create_dir_all(&pictures).with_context(|| format!("cannot create {}", pictures.display()))?;
+    // Where the fit falls short: per-texel residual maps, grazing and other pairs.
+    for (grazing, name) in [(true, "residual_grazing.png"), (false, "residual_other.png")] {
+        let map = residual_map(&result.predictions, &result.training.images, &r.pairs, grazing);
+        map.write(&pictures.join(name), 1.0).with_context(|| format!("cannot write {}", pictures.join(name).display()))?;
+    }
+    let mut csv = String::from("k,training_error,training_block_error,median_cluster_residual,seconds\n");
+    for round in &r.rounds {
+        csv += &format!("{},{},{},{},{}\n", round.k, round.error, round.block_error, round.median_cluster_residual, round.seconds);
+    }
+    std::fs::write(pictures.join("error_vs_k.csv"), csv).with_context(|| format!("cannot write {}", pictures.join("error_vs_k.csv").display()))?;
+
     // Held-out views.
     let mut views: Vec<ViewError> = Vec::new();
     if args.held_out > 0 {
-        let pictures = args.pictures.clone().unwrap_or_else(|| sibling(&args.out, "-views"));
-        std::fs::create_dir_all(&pictures).with_context(|| format!("cannot create {}", pictures.display()))?;
         let medium = reference_medium(&volume, options.lookup)?;
         let pairs = held_out_pairs(&r.pairs, args.held_out, 60.0, 5.0, options.seed ^ 0x5eed);
         let bar = stage_bar("held-out views", pairs.len() as u64);
@@ -285,6 +295,30 @@ pub fn run(args: BakeArgs) -> Result<()> {
     Ok(())
 }
 
+/// Per texel √(Σ‖model − reference‖² / Σ‖reference‖²) over the grazing (a polar angle
+/// > 55°) or the other training pairs, as a picture: 0 black, 50% mid-grey, ≥ 100% white.
+fn residual_map(predictions: &[Image], references: &[Image], pairs: &[fabric_baker::fit::directions::Pair], grazing: bool) -> Image {
+    let (w, h) = (references[0].width, references[0].height);
+    let mut d2 = vec![0f64; (w * h) as usize];
+    let mut r2 = vec![0f64; (w * h) as usize];
+    for ((p, r), pair) in predictions.iter().zip(references).zip(pairs) {
+        if (pair.max_polar_deg() > 55.0) != grazing {
+            continue;
+        }
+        for k in 0..d2.len() {
+            d2[k] += (p.pixels[k] - r.pixels[k]).as_dvec3().length_squared();
+            r2[k] += r.pixels[k].as_dvec3().length_squared();
+        }
+    }
+    let mut out = Image::new(w, h);
+    for k in 0..d2.len() {
+        let e = if r2[k] > 0.0 { (d2[k] / r2[k]).sqrt() as f32 } else { 0.0 };
+        // PNG writes sRGB(v): choose v so that the grey level reads linearly in e.
+        out.pixels[k] = glam::Vec3::splat(fabric_runtime::image::srgb_decode(e.min(1.0)));
+    }
+    out
+}
+
 /// `path` with `suffix` appended to its stem, as a directory beside it.
 fn sibling(path: &Path, suffix: &str) -> PathBuf {
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "model".into());
@@ -306,51 +340,4 @@ fn side_by_side(reference: &Image, model: &Image, path: &Path) -> Result<()> {
     let mean = reference.mean().max(1e-6) as f32;
     out.write(path, 0.4 / mean).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
-}
-
-fn stage_bar(name: &str, total: u64) -> ProgressBar {
-    let bar = ProgressBar::new(total);
-    bar.set_style(ProgressStyle::with_template("{prefix:>28} [{bar:40}] {pos}/{len} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
-    bar.set_prefix(name.to_string());
-    bar.enable_steady_tick(Duration::from_millis(200));
-    bar
-}
-
-/// One bar per bake stage (hidden when stderr is not a terminal).
-#[derive(Default)]
-struct Bars {
-    bar: Mutex<Option<ProgressBar>>,
-}
-
-impl Bars {
-    fn finish(&self) {
-        if let Ok(mut b) = self.bar.lock()
-            && let Some(bar) = b.take()
-        {
-            bar.finish_and_clear();
-        }
-    }
-}
-
-impl BakeProgress for Bars {
-    fn begin(&self, stage: &str, total: u64) {
-        if let Ok(mut b) = self.bar.lock() {
-            if let Some(old) = b.take() {
-                old.finish_and_clear();
-            }
-            *b = Some(stage_bar(stage, total));
-        }
-    }
-
-    fn advance(&self, n: u64) {
-        if let Ok(b) = self.bar.lock()
-            && let Some(bar) = b.as_ref()
-        {
-            bar.inc(n);
-        }
-    }
-
-    fn end(&self) {
-        self.finish();
-    }
 }

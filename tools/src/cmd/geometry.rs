@@ -3,14 +3,13 @@
 //! previews and `OUT/geometry.json` (filter size, fiber thickness, counts, stage times).
 
 use std::path::PathBuf;
-use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use fabric_baker::geometry::{DensityThreshold, FilterRule, Geometry, GeometryOptions, Progress, Stage, StageTime, extract_geometry_with, preview};
+use fabric_baker::geometry::{DensityThreshold, FilterRule, Geometry, GeometryOptions, StageTime, extract_geometry_with, preview};
 use fabric_baker::volume::{MaterialOverrides, load_fabric_with_progress};
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::progress::{Bars, stage_bar};
 
 #[derive(Args, Debug)]
 pub struct GeometryArgs {
@@ -101,7 +100,7 @@ pub fn run(args: GeometryArgs) -> Result<()> {
     let [nx, ny, nz] = volume.dims();
     println!("volume {}: {nx}x{ny}x{nz} voxels, voxel size {} (loaded in {load_seconds:.2} s)", args.dir.display(), volume.voxel_size());
 
-    let progress = BarProgress::default();
+    let progress = Bars::default();
     let mut geometry = extract_geometry_with(&volume, &options, &progress).with_context(|| format!("geometry of {}", args.dir.display()))?;
     progress.finish();
     drop(volume);
@@ -143,52 +142,5 @@ fn print_summary(g: &Geometry) {
     println!("stage times (s): {}; total {total:.2}", times.join(", "));
     for w in &g.warnings {
         println!("warning: {w}");
-    }
-}
-
-fn stage_bar(name: &str, total: u64) -> ProgressBar {
-    let bar = ProgressBar::new(total);
-    bar.set_style(ProgressStyle::with_template("{prefix:>16} [{bar:40}] {pos}/{len} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
-    bar.set_prefix(name.to_string());
-    bar.enable_steady_tick(Duration::from_millis(200));
-    bar
-}
-
-/// One indicatif bar per extraction stage (hidden when stderr is not a terminal).
-#[derive(Default)]
-struct BarProgress {
-    bar: Mutex<Option<ProgressBar>>,
-}
-
-impl BarProgress {
-    fn finish(&self) {
-        if let Ok(mut b) = self.bar.lock()
-            && let Some(bar) = b.take()
-        {
-            bar.finish_and_clear();
-        }
-    }
-}
-
-impl Progress for BarProgress {
-    fn begin(&self, stage: Stage, total: u64) {
-        if let Ok(mut b) = self.bar.lock() {
-            if let Some(old) = b.take() {
-                old.finish_and_clear();
-            }
-            *b = Some(stage_bar(stage.name(), total));
-        }
-    }
-
-    fn advance(&self, n: u64) {
-        if let Ok(b) = self.bar.lock()
-            && let Some(bar) = b.as_ref()
-        {
-            bar.inc(n);
-        }
-    }
-
-    fn end(&self, _stage: Stage, _seconds: f64) {
-        self.finish();
     }
 }
