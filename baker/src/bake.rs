@@ -86,6 +86,8 @@ pub struct BakeOptions {
     /// surface = h + relief·(h0 − h). 0 is the paper's smooth h; more relief gives the
     /// march the parallax and the shadows of the yarns' crowns and valleys.
     pub relief: f32,
+    /// Shift of the model's surface along z, in voxels (negative: deeper).
+    pub surface_offset: f32,
     /// Flyaway fibers in the model (§5.3.4), or `None` to leave them out.
     pub flyaways: Option<FlyawayOptions>,
 }
@@ -129,6 +131,7 @@ impl Default for BakeOptions {
             per_texel_ridge: Some(0.05),
             normal_slope: 1.0,
             relief: 0.0,
+            surface_offset: 0.0,
             flyaways: Some(FlyawayOptions::default()),
         }
     }
@@ -316,8 +319,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // 1. Geometry.
     let t = Instant::now();
     let mut geometry = extract_geometry_with(volume, &options.geometry, progress)?;
+    let nz_f = volume.dims()[2] as f32;
     scale_normal_slopes(&mut geometry, options.normal_slope);
-    let surface = surface_heights(&geometry, options.relief);
+    let surface: Vec<f32> = surface_heights(&geometry, options.relief).into_iter().map(|h| (h + options.surface_offset).clamp(0.0, nz_f)).collect();
     stage("geometry", t);
     let [nx, ny, nz] = volume.dims();
     let texels = nx * ny;

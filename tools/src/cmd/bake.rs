@@ -118,6 +118,9 @@ pub struct BakeArgs {
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
+    /// Shift of the model's surface along z, in voxels (negative: deeper).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub surface_offset: f32,
     /// Keep the paper's clustered level 0 (one BRDF per cluster) instead of refining
     /// each texel's k_d and k_j on its own samples.
     #[arg(long)]
@@ -167,6 +170,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--relief {}: must be in [0, 1]", args.relief);
     }
     options.relief = args.relief;
+    if !(args.surface_offset.is_finite() && args.surface_offset.abs() <= 64.0) {
+        bail!("--surface-offset {}: must be within ±64 voxels", args.surface_offset);
+    }
+    options.surface_offset = args.surface_offset;
     if !(args.ridge.is_finite() && args.ridge >= 0.0) {
         bail!("--ridge {}: must be a non-negative number", args.ridge);
     }
