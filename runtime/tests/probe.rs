@@ -58,3 +58,31 @@ fn measure_image_is_the_renderers_radiance_along_the_given_rays() {
     assert!(measure_image(&model, &options, wi, 0, 0, &ray).is_err());
     assert!(measure_image(&model, &options, wi, 9, 1, &ray).is_err());
 }
+
+#[test]
+fn the_volumetric_flag_scales_surface_hits_by_the_factor_and_round_trips() {
+    use fabric_runtime::brdf::{ClothLobe, ClothParams};
+    use fabric_runtime::cpu::shading::volume_factor;
+    use fabric_runtime::hybrid::{Tile, examples::uniform_model, format};
+    let tile = Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 0.2, height_scale: 0.2, voxel_depth: 0.0125 };
+    let params = ClothParams::new(Vec3::splat(0.3), 1.5, 1.0, &[ClothLobe { k: Vec3::splat(0.5), beta: 0.3, gamma: 1.0 }]);
+    let mut model = uniform_model(8, 8, 1, tile, |_, _| 0.1, &params, Vec3::Z, Vec3::X).unwrap();
+    let wi = Vec3::new(0.6, 0.1, 0.5).normalize();
+    let wo = Vec3::new(-0.3, 0.4, 0.7).normalize();
+    let ray = |x: u32, y: u32, _s: u32| Ray::new(Vec3::new((x as f32 + 0.5) / 8.0, (y as f32 + 0.5) / 8.0, 0.2), -wo);
+    let plain = measure_image(&model, &CpuRenderOptions::default(), wi, 0, 1, &ray).unwrap();
+    model.meta.volumetric = true;
+    let scaled = measure_image(&model, &CpuRenderOptions::default(), wi, 0, 1, &ray).unwrap();
+    let f = volume_factor(wi, wo);
+    assert!(f > 1.0 && f < 2.0, "{f}");
+    for (a, b) in plain.pixels.iter().zip(&scaled.pixels) {
+        assert!(a.max_element() > 0.0);
+        assert!((*b - *a * f).abs().max_element() <= 1e-6 * b.max_element(), "{a} · {f} vs {b}");
+    }
+    // The flag survives the file; 1.0 readers would reject it as an unknown flag.
+    let bytes = format::to_bytes(&model).unwrap();
+    assert!(format::read(&bytes).unwrap().meta.volumetric);
+    // Normal incidence and view: the factor is 1; it is capped at grazing.
+    assert_eq!(volume_factor(Vec3::Z, Vec3::Z), 1.0);
+    assert_eq!(volume_factor(Vec3::X, -Vec3::Z), 20.0);
+}

@@ -18,6 +18,7 @@
 //!   than they are.
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_fiber_frame};
+use fabric_runtime::cpu::shading::volume_factor;
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError};
 use fabric_runtime::scene::{Light, Ray};
@@ -184,7 +185,8 @@ pub fn fit_flyaways(
                     }
                     if let Some(hit) = probe.surface {
                         let t = hit.texel.0 as usize + w * hit.texel.1 as usize;
-                        let g = Geo::new(&frames[t], pair.wi, pair.wo, hit.visibility);
+                        let factor = if model.meta.volumetric { volume_factor(pair.wi, pair.wo) } else { 1.0 };
+                        let g = Geo::new(&frames[t], pair.wi, pair.wo, hit.visibility * factor);
                         surface += hit.transmittance / rays as f32 * predict(&surface_of(t), &g, reading);
                     }
                 }

@@ -12,6 +12,7 @@
 use std::time::Instant;
 
 use fabric_runtime::brdf::{ClothFrame, cloth_angles, cloth_fresnel_cos};
+use fabric_runtime::cpu::shading::volume_factor;
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::HybridModel;
 use fabric_runtime::image::Image;
@@ -110,6 +111,8 @@ pub struct ProbeOptions {
     pub rays: u32,
     /// Height-field shadowing of the light in the model.
     pub shadows: bool,
+    /// The model's volumetric factor on surface hits (`cpu::shading::volume_factor`).
+    pub volumetric: bool,
 }
 
 /// Probes the rays of `texels` for the pair (`wi`, `wo`): ray s of texel (x, y) is the
@@ -119,6 +122,7 @@ pub struct ProbeOptions {
 /// (none should on a periodic tile) are dropped.
 pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: Vec3, texels: &[u32], options: &ProbeOptions, jitter: &(dyn Fn(u32, u32) -> (f32, f32) + Sync), target: &(dyn Fn(u32) -> u32 + Sync)) -> Vec<Sample> {
     let lights = [Light::directional(wi, Vec3::ONE)];
+    let factor = if options.volumetric { volume_factor(wi, wo) } else { 1.0 };
     let render = CpuRenderOptions { periodic: true, shadows: if options.shadows { ShadowMode::On } else { ShadowMode::Off }, ..Default::default() };
     let Ok(scene) = Scene::for_rays(model, &lights, render) else {
         return Vec::new();
@@ -140,7 +144,7 @@ pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: 
                 let probe = scene.probe_ray(&Ray::new(o, d), 0, false);
                 let hit = probe.surface?;
                 let index = hit.texel.0 + model.width() * hit.texel.1;
-                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, hit.visibility) })
+                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, hit.visibility * factor) })
             })
         })
         .collect()

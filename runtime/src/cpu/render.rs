@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
-use super::shading::{in_fiber_frame, shade};
+use super::shading::{in_fiber_frame, shade, volume_factor};
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
 use crate::brdf::BrdfReading;
 use crate::hybrid::HybridModel;
@@ -212,7 +212,12 @@ impl<'a> Scene<'a> {
                 let p = ray.at(t);
                 let (i, j) = self.texel_at(p, level);
                 let b = l.texel_brdf(i, j);
-                radiance += transmittance * shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited));
+                let volumetric = self.model.meta.volumetric;
+                radiance += transmittance
+                    * shade(&b, p, wo, self.lights, self.reading, |p, s| {
+                        let v = self.visibility(p, s, &mut shadow_limited);
+                        if volumetric { v * volume_factor(s.wi, wo) } else { v }
+                    });
             }
         }
         out.radiance = radiance + transmittance * if out.surface_t.is_some() { Vec3::ZERO } else { self.options.background };

@@ -34,6 +34,20 @@ pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading) -
     r
 }
 
+/// Smallest μ_i + μ_o of the volumetric factor (caps it at 20).
+pub const VOLUME_MU_MIN: f32 = 0.1;
+
+/// The volumetric factor of a surface hit in a model baked with it
+/// (runtime/HYBRID_FORMAT.md §6): 2 / (μ_i + μ_o), μ = ω·ẑ the cosines to the tile's
+/// normal. The single scattering of a semi-infinite medium goes as μ_i / (μ_i + μ_o)
+/// rather than Lambert's μ_i (Lommel–Seeliger), so a fabric's mirror response grows
+/// towards grazing angles where a surface BRDF's falls; the factor is 1 at normal
+/// incidence and view.
+#[inline]
+pub fn volume_factor(wi: Vec3, wo: Vec3) -> f32 {
+    2.0 / (wi.z.max(0.0) + wo.z.max(0.0)).max(VOLUME_MU_MIN)
+}
+
 /// Replaces every frame of a flyaway BRDF by the fiber frame of axis `fiber` seen from
 /// `wo` (DESIGN.md §5).
 #[inline]

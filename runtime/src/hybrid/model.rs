@@ -165,6 +165,9 @@ pub struct BakeMetadata {
     pub reading: BrdfReading,
     /// Whether the fit assumed height-field shadowing (renderers shadow by default then).
     pub fitted_with_shadowing: bool,
+    /// Whether surface hits carry the volumetric factor 2/(μ_i + μ_o)
+    /// (`cpu::shading::volume_factor`; format 1.1).
+    pub volumetric: bool,
     /// Relative fit error per level (≥ 0), or negative where not measured.
     pub fit_error: Vec<f32>,
     /// Bounding box of the source volume.

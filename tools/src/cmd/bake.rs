@@ -94,6 +94,9 @@ pub struct BakeArgs {
     /// Fit without the height field's shadowing of the light.
     #[arg(long)]
     pub no_shadows: bool,
+    /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).
+    #[arg(long)]
+    pub volumetric: bool,
     /// What the surface fit's renderings leave out.
     #[arg(long, value_enum, default_value = "above")]
     pub mask: MaskArg,
@@ -140,7 +143,7 @@ pub struct BakeArgs {
 }
 
 pub fn run(args: BakeArgs) -> Result<()> {
-    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: !args.no_shadows, ..Default::default() };
+    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: !args.no_shadows, volumetric: args.volumetric, ..Default::default() };
     options.pairs.count = args.pairs;
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;
