@@ -244,7 +244,7 @@ impl BakeOptions {
         if self.k_min == 0 || self.k_max < self.k_min || self.k_max > 65536 {
             return bad("k", format!("{}..{}", self.k_min, self.k_max), "need 1 ≤ k_min ≤ k_max ≤ 65536");
         }
-        if !(self.delta >= 0.0 && self.delta.is_finite()) || !(self.min_gain >= 0.0 && self.min_gain < 1.0) {
+        if !(self.delta >= 0.0 && self.delta.is_finite() && self.min_gain >= 0.0 && self.min_gain < 1.0) {
             return bad("delta/min_gain", format!("{}/{}", self.delta, self.min_gain), "δ ≥ 0 and 0 ≤ min_gain < 1");
         }
         if self.pairs.count < 8 || self.pairs.count > 4096 {
@@ -390,18 +390,20 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut dense_values: Vec<Vec3> = Vec::new();
     let dense_seed = mix64(options.seed ^ 0x6d65_6173);
     let mut rounds: Vec<KRound> = Vec::new();
-    let mut best: Option<(f64, Vec<u32>, Vec<ClusterFit>, Vec<Image>)> = None;
+    // (training error, clusters, fits, predictions) of the best round so far.
+    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<Image>);
+    let mut best: Option<Round> = None;
     let mut k = options.k_min.min(texels);
     let t_fit = Instant::now();
     loop {
         let t_round = Instant::now();
-        let bar = begin_stage(progress, &format!("K = {k}: clustering"), 1);
+        let bar = begin_stage(progress, format!("K = {k}: clustering"), 1);
         let km = kmeans(&features.data, features.dim, k, &KMeansOptions { seed: options.seed, ..Default::default() }).map_err(|e| BakeError::Cluster(e.to_string()))?;
         let reps = representatives(&features.data, features.dim, &km);
         bar.finish();
         // Dense measurement of new representatives.
         let new_reps: Vec<u32> = reps.iter().map(|&r| r as u32).filter(|r| !dense_cache.contains_key(r)).collect();
-        let bar = begin_stage(progress, &format!("K = {k}: dense measurement"), new_reps.len() as u64);
+        let bar = begin_stage(progress, format!("K = {k}: dense measurement"), new_reps.len() as u64);
         let mut dense_paths = 0;
         for &rep in &new_reps {
             let (x, y) = (rep as usize % nx, rep as usize / nx);
@@ -431,7 +433,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
             }
         }
-        let bar = begin_stage(progress, &format!("K = {k}: fitting"), k as u64);
+        let bar = begin_stage(progress, format!("K = {k}: fitting"), k as u64);
         let fits: Vec<ClusterFit> = targets
             .par_iter()
             .map(|t| {
@@ -448,7 +450,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         residuals.sort_by(|a, b| a.total_cmp(b));
         let median = residuals.get(residuals.len() / 2).copied().unwrap_or(0.0);
         rounds.push(KRound { k, error, block_error, median_cluster_residual: median, seconds: t_round.elapsed().as_secs_f64(), dense_paths });
-        let improved = best.as_ref().map_or(true, |b| error < b.0);
+        let improved = best.as_ref().is_none_or(|b| error < b.0);
         let gain = best.as_ref().map_or(1.0, |b| (b.0 - error) / b.0.max(1e-30));
         if improved {
             best = Some((error, cluster.clone(), fits, predictions));

@@ -35,7 +35,7 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(f.voxels > 0 && f.pixels > 0 && f.problem.is_none(), "{f:?}");
     assert!(f.error_fitted < f.error_without, "{f:?}");
     assert!(b.model.has_flyaways());
-    assert!(r.k >= 2 && r.rounds.len() >= 1 && r.error.is_finite());
+    assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);
     // The file round-trips bit for bit.

@@ -215,8 +215,8 @@ pub fn fit_flyaways(
         }
         let y = r.residual.as_dvec3().to_array();
         for ch in 0..3 {
-            for a in 0..cols {
-                atb[ch][a] += r.row[a] * y[ch];
+            for (acc, x) in atb[ch].iter_mut().zip(&r.row) {
+                *acc += x * y[ch];
             }
             btb[ch] += y[ch] * y[ch];
         }
@@ -232,10 +232,10 @@ pub fn fit_flyaways(
         match nnls_gram(&gram, &atb[ch], btb[ch], cols) {
             Ok(sol) => {
                 fitted2 += sol.residual2;
-                for c in 0..clusters {
-                    params[c].kd[ch] = sol.x[c * nb] as f32;
+                for (c, p) in params.iter_mut().enumerate() {
+                    p.kd[ch] = sol.x[c * nb] as f32;
                     for j in 0..nb - 1 {
-                        params[c].lobes[j].k[ch] = sol.x[c * nb + 1 + j] as f32;
+                        p.lobes[j].k[ch] = sol.x[c * nb + 1 + j] as f32;
                     }
                 }
             }

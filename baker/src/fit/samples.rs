@@ -120,6 +120,7 @@ pub struct ProbeOptions {
 /// draws first), through the model `model` (its height field and texel frames).
 /// Returns samples whose target is `target(texel index)`. Rays that miss the surface
 /// (none should on a periodic tile) are dropped.
+#[allow(clippy::too_many_arguments)] // the rays' full description: model, sheet, pair, texels, jitter, targets
 pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: Vec3, texels: &[u32], options: &ProbeOptions, jitter: &(dyn Fn(u32, u32) -> (f32, f32) + Sync), target: &(dyn Fn(u32) -> u32 + Sync)) -> Vec<Sample> {
     let lights = [Light::directional(wi, Vec3::ONE)];
     let factor = if options.volumetric { volume_factor(wi, wo) } else { 1.0 };
