@@ -124,34 +124,48 @@ fn basis(g: &Geo, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfRe
     }
 }
 
-/// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
-/// matrix. Returns (coefficients [channel][basis], Σ residual²).
-fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
+/// The normal equations of the linear parameters for fixed non-linear ones, over every
+/// `stride`-th sample: the Gram matrix AᵀA (n×n, full), and Aᵀb and bᵀb per RGB channel.
+struct NormalEquations {
+    n: usize,
+    gram: Vec<f64>,
+    atb: [Vec<f64>; 3],
+    btb: [f64; 3],
+}
+
+#[allow(clippy::too_many_arguments)] // the non-linear parameters, each used once
+fn normal_equations(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfReading) -> NormalEquations {
     let n = 1 + beta.len();
-    let mut gram = vec![0.0f64; n * n];
-    let mut atb = [vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]];
-    let mut btb = [0.0f64; 3];
+    let mut e = NormalEquations { n, gram: vec![0.0; n * n], atb: [vec![0.0; n], vec![0.0; n], vec![0.0; n]], btb: [0.0; 3] };
     let mut row = [0.0f64; 8];
     for s in samples.iter().step_by(stride.max(1)) {
-        basis(&s.geo, beta, gamma, a, eta, o.reading, &mut row[..n]);
+        basis(&s.geo, beta, gamma, a, eta, reading, &mut row[..n]);
         for r in 0..n {
             for c in r..n {
-                gram[r * n + c] += row[r] * row[c];
+                e.gram[r * n + c] += row[r] * row[c];
             }
         }
         let y = s.radiance.as_dvec3().to_array();
-        for ch in 0..3 {
-            for r in 0..n {
-                atb[ch][r] += row[r] * y[ch];
+        for ((atb, btb), y) in e.atb.iter_mut().zip(&mut e.btb).zip(y) {
+            for (acc, x) in atb.iter_mut().zip(&row[..n]) {
+                *acc += x * y;
             }
-            btb[ch] += y[ch] * y[ch];
+            *btb += y * y;
         }
     }
     for r in 0..n {
         for c in 0..r {
-            gram[r * n + c] = gram[c * n + r];
+            e.gram[r * n + c] = e.gram[c * n + r];
         }
     }
+    e
+}
+
+/// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
+/// matrix. Returns (coefficients [channel][basis], Σ residual²).
+#[allow(clippy::too_many_arguments)] // the non-linear parameters, each used once
+fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
+    let NormalEquations { n, gram, atb, btb } = normal_equations(samples, stride, beta, gamma, a, eta, o.reading);
     let mut residual = 0.0;
     let mut coefficients: [Vec<f64>; 3] = Default::default();
     for ch in 0..3 {
@@ -187,26 +201,7 @@ pub fn refine_texel(samples: &[Target], cluster: &ClothParams, ridge: f64, readi
     let n = 1 + lobes.len();
     let beta: Vec<f32> = lobes.iter().map(|l| l.beta).collect();
     let gamma: Vec<f32> = lobes.iter().map(|l| l.gamma).collect();
-    let o = ClusterFitOptions { lobes: lobes.len(), eta: cluster.eta, reading, ..Default::default() };
-    let mut gram = vec![0.0f64; n * n];
-    let mut atb = [vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]];
-    let mut btb = [0.0f64; 3];
-    let mut row = [0.0f64; 8];
-    for s in samples {
-        basis(&s.geo, &beta, &gamma, cluster.a, o.eta, reading, &mut row[..n]);
-        for r in 0..n {
-            for c in 0..n {
-                gram[r * n + c] += row[r] * row[c];
-            }
-        }
-        let y = s.radiance.as_dvec3().to_array();
-        for ch in 0..3 {
-            for r in 0..n {
-                atb[ch][r] += row[r] * y[ch];
-            }
-            btb[ch] += y[ch] * y[ch];
-        }
-    }
+    let NormalEquations { mut gram, atb, btb, .. } = normal_equations(samples, 1, &beta, &gamma, cluster.a, cluster.eta, reading);
     let lambda = ridge * (0..n).map(|r| gram[r * n + r]).sum::<f64>() / n as f64;
     let prior = |ch: usize, r: usize| -> f64 { if r == 0 { cluster.kd[ch] as f64 } else { lobes[r - 1].k[ch] as f64 } };
     for r in 0..n {
