@@ -266,20 +266,24 @@ fn seed(data: &[f32], dim: usize, k: usize, seed: u64) -> Vec<f32> {
     let mut centres = Vec::with_capacity(k * dim);
     let first = ((rng.next_u64() as u128 * n as u128) >> 64) as usize;
     centres.extend_from_slice(point(first));
-    // closest[i] = D²(i); block_sums[b] = Σ of block b, summed in order.
-    let mut closest = vec![0f32; n];
-    let mut block_sums: Vec<f64> = closest
-        .par_chunks_mut(bl)
-        .zip(data.par_chunks(bl * dim))
-        .map(|(cl, points)| {
-            let mut s = 0f64;
-            for (c, x) in cl.iter_mut().zip(points.chunks_exact(dim)) {
-                *c = dist2(x, point(first));
-                s += *c as f64;
-            }
-            s
-        })
-        .collect();
+    // closest[i] = D²(i); block_sums[b] = Σ of block b, summed in order. Adding a centre
+    // lowers each D² to the distance to it where that is closer.
+    let add_centre = |closest: &mut [f32], chosen: usize| -> Vec<f64> {
+        closest
+            .par_chunks_mut(bl)
+            .zip(data.par_chunks(bl * dim))
+            .map(|(cl, points)| {
+                let mut s = 0f64;
+                for (c, x) in cl.iter_mut().zip(points.chunks_exact(dim)) {
+                    *c = c.min(dist2(x, point(chosen)));
+                    s += *c as f64;
+                }
+                s
+            })
+            .collect()
+    };
+    let mut closest = vec![f32::INFINITY; n];
+    let mut block_sums = add_centre(&mut closest, first);
     let trials = 2 + (k as f64).ln().floor() as usize;
     let mut candidates = Vec::with_capacity(trials);
     for _ in 1..k {
@@ -323,18 +327,7 @@ fn seed(data: &[f32], dim: usize, k: usize, seed: u64) -> Vec<f32> {
         }
         let chosen = candidates[best];
         centres.extend_from_slice(point(chosen));
-        block_sums = closest
-            .par_chunks_mut(bl)
-            .zip(data.par_chunks(bl * dim))
-            .map(|(cl, points)| {
-                let mut s = 0f64;
-                for (c, x) in cl.iter_mut().zip(points.chunks_exact(dim)) {
-                    *c = c.min(dist2(x, point(chosen)));
-                    s += *c as f64;
-                }
-                s
-            })
-            .collect();
+        block_sums = add_centre(&mut closest, chosen);
     }
     centres
 }
