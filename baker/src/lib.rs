@@ -1,5 +1,5 @@
 //! The baker: fabric volumes, the reference path tracer, and the conversion of a
-//! volume into a hybrid model (../shared/DESIGN.md).
+//! volume into a hybrid model (docs/DESIGN.md).
 
 // `!(x > 0.0)` is how this crate rejects NaN together with non-positive values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

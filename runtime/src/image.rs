@@ -1,4 +1,4 @@
-//! Linear-RGB images and their files (../shared/DESIGN.md §8).
+//! Linear-RGB images and their files (docs/DESIGN.md §8).
 //!
 //! - EXR holds linear radiance (RGB, f32).
 //! - PNG holds sRGB(clamp(exposure · L)), 8 bits per channel. Goldens and FLIP

@@ -1,5 +1,5 @@
 //! The runtime: hybrid fabric models (format, BRDF, CPU renderer) and the Vulkan
-//! renderer that draws them (../shared/DESIGN.md §6–§7).
+//! renderer that draws them (docs/DESIGN.md §6–§7).
 
 // Linked for its glslang/SPIRV-Tools link lines (see runtime/shaderc-link).
 use shaderc_link as _;

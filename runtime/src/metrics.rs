@@ -1,4 +1,4 @@
-//! Image error metrics used by every accuracy claim (../shared/DESIGN.md §9):
+//! Image error metrics used by every accuracy claim (docs/DESIGN.md §9):
 //! relative RMSE over linear RGB values, and FLIP (NVIDIA's perceptual metric, via
 //! `nv-flip`) on the 8-bit sRGB tone-mapped images (the PNG mapping of §8).
 

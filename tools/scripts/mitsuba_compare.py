@@ -26,7 +26,7 @@ per second of both renderers, measured on the same machine in the same run, and 
 ratio. Mitsuba's time covers `mi.render` only (scene loading excluded); ours is the
 render loop only (as `fabric reference --json` reports it).
 
-Scene mapping (../shared/DESIGN.md section 8; everything else is identical):
+Scene mapping (docs/DESIGN.md section 8; everything else is identical):
   - volume: `heterogeneous` medium inside a `cube` with a `null` BSDF that spans the
     .vol bounding box; sigma_t = gridvolume(density.vol), albedo = gridvolume(albedo.vol),
     scale = material.toml density_scale, phase = `sggx` with S = gridvolume(S.vol), the

@@ -1,6 +1,6 @@
 //! Flags shared by every command that renders: camera, light, image size, exposure.
 //! One definition so that `fabric reference`, `fabric render` (GPU and CPU) and the
-//! bench mean the same thing by the same flag (../shared/DESIGN.md §8).
+//! bench mean the same thing by the same flag (docs/DESIGN.md §8).
 
 use anyhow::{Context, Result, bail};
 use clap::Args;

@@ -1,4 +1,4 @@
-//! The procedural fabric generator (../shared/DESIGN.md §3): fibers → plies → yarns →
+//! The procedural fabric generator (docs/DESIGN.md §3): fibers → plies → yarns →
 //! weave (or a matted felt layer), voxelized to density, albedo and orientation.
 //!
 //! World units are millimetres. The volume spans [0, X·h] × [0, Y·h] × [0, Z·h] for a

@@ -1,4 +1,4 @@
-//! Hybrid geometry from a fabric volume (paper §5.2, ../shared/DESIGN.md §5):
+//! Hybrid geometry from a fabric volume (paper §5.2, docs/DESIGN.md §5):
 //! the detailed height map h0, the flyaway volume V, the filter size from the
 //! autocorrelations of h0 (Eq. 4), the smooth height h, and the normal and tangent maps.
 //!

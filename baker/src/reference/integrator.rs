@@ -1,6 +1,6 @@
 //! The volumetric path tracer: delta-tracking free flights, next-event estimation to
 //! the (delta) light with ratio-tracking transmittance, SGGX phase sampling, Russian
-//! roulette (../shared/DESIGN.md §4).
+//! roulette (docs/DESIGN.md §4).
 //!
 //! Estimator, per path: at a real collision x (density σ_t·T, so the collision weight
 //! is σ_s/σ_t = α(x)), add

@@ -1,4 +1,4 @@
-//! Measurement mode: what the baker fits its BRDF to (../shared/DESIGN.md §5,
+//! Measurement mode: what the baker fits its BRDF to (docs/DESIGN.md §5,
 //! "Measurement").
 //!
 //! For texel (x, y) and a pair (ω_i, ω_o): the radiance leaving the periodic sample

@@ -1,5 +1,5 @@
 //! The reference renderer: an unbiased volumetric path tracer of the input fabric
-//! (../shared/DESIGN.md §4). See `medium` for the conventions it shares with Mitsuba 3.
+//! (docs/DESIGN.md §4). See `medium` for the conventions it shares with Mitsuba 3.
 
 pub mod integrator;
 pub mod majorant;

@@ -3,7 +3,7 @@
 //! Every path owns its own stream, derived by hashing the render seed, the item it
 //! belongs to (pixel, texel or measurement pair) and the sample index. Nothing is shared
 //! between paths, so an image is bit-identical for any number of threads and any
-//! scheduling (../shared/DESIGN.md §8, "Determinism").
+//! scheduling (docs/DESIGN.md §8, "Determinism").
 //!
 //! The generator is SplitMix64 (Steele, Lea and Flood 2014): output n of a stream is
 //! `mix(key + n·γ)`, γ the golden-ratio increment, `mix` a 64-bit finalizer with full

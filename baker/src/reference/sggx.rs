@@ -2,7 +2,7 @@
 //! (Heitz, Dupuy, Crassin and Dachsbacher 2015, "The SGGX microflake distribution").
 //!
 //! S is a symmetric positive-definite 3×3 matrix, stored as (xx, yy, zz, xy, xz, yz),
-//! the channel order of Mitsuba 3's `sggx` plugin. Fibers (../shared/DESIGN.md §4):
+//! the channel order of Mitsuba 3's `sggx` plugin. Fibers (docs/DESIGN.md §4):
 //!
 //!   S = σ²·ω_f ω_fᵀ + (I − ω_f ω_fᵀ) = I − (1 − σ²)·ω_f ω_fᵀ
 //!

@@ -1,6 +1,6 @@
 //! A fabric on disk: a directory with `density.vol` (1 channel), `albedo.vol` (3),
 //! `orientation.vol` (3; unit vectors where ρ > 0, sign irrelevant) and an optional
-//! `material.toml` (../shared/DESIGN.md §3). World units are those of the `.vol`
+//! `material.toml` (docs/DESIGN.md §3). World units are those of the `.vol`
 //! bounding box.
 //!
 //! Loading streams the three files slab by slab, validates every voxel and packs it

@@ -1,5 +1,5 @@
 //! The in-memory fabric volume: density ρ, albedo α (RGB) and fiber orientation ω_f on
-//! one cell-centred grid inside a world bounding box (../shared/DESIGN.md §3).
+//! one cell-centred grid inside a world bounding box (docs/DESIGN.md §3).
 //!
 //! Layout: one packed 12-byte [`Voxel`] per cell, x fastest, then y, then z (the `.vol`
 //! order). A 1024×1024×128 fabric takes 1.6 GiB instead of the 3.5 GiB of f32 channels.

@@ -1,5 +1,5 @@
 //! Fabric volumes: the in-memory grid, Mitsuba `.vol` I/O, `material.toml` and
-//! validation (../shared/DESIGN.md §3).
+//! validation (docs/DESIGN.md §3).
 
 pub mod error;
 pub mod fabric_dir;

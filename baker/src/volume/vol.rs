@@ -1,4 +1,4 @@
-//! Mitsuba's binary grid volume (`.vol`), read and written (../shared/DESIGN.md §3).
+//! Mitsuba's binary grid volume (`.vol`), read and written (docs/DESIGN.md §3).
 //!
 //! Layout, little endian (Mitsuba 0.5 `gridvolume`, Mitsuba 3 `VolumeGrid`):
 //!

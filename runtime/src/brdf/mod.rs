@@ -1,4 +1,4 @@
-//! The cloth BRDF of the hybrid model (paper Eqs. 1–3, read as ../shared/DESIGN.md §5):
+//! The cloth BRDF of the hybrid model (paper Eqs. 1–3, read as docs/DESIGN.md §5):
 //! the Rust twin of `shaders/brdf.glsl`.
 //!
 //! The two files have the same functions, with the same names, in the same order, and

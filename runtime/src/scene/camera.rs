@@ -1,4 +1,4 @@
-//! Cameras, with Mitsuba 3's conventions (../shared/DESIGN.md §8).
+//! Cameras, with Mitsuba 3's conventions (docs/DESIGN.md §8).
 //!
 //! - `look_at`: forward = normalize(target − origin), image right = normalize(forward × up),
 //!   image up = right × forward.

@@ -1,4 +1,4 @@
-//! Lights, with the conventions of ../shared/DESIGN.md §8.
+//! Lights, with the conventions of docs/DESIGN.md §8.
 //!
 //! - A directional light's `dir_to_light` points *toward* the light (Mitsuba's
 //!   `direction` is its negative); `irradiance` is per unit area perpendicular to the beam.

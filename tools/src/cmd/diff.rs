@@ -1,4 +1,4 @@
-//! `fabric diff A B`: how far image A is from reference B (../shared/DESIGN.md §9):
+//! `fabric diff A B`: how far image A is from reference B (docs/DESIGN.md §9):
 //! relative RMSE over linear RGB, mean per-pixel relative difference, relative
 //! difference of the image means, and FLIP on the sRGB(clamp(exposure·L)) 8-bit images.
 //! Optionally writes the FLIP error map in false colour (magma).

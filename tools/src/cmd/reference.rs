@@ -1,7 +1,7 @@
 //! `fabric reference DIR`: path-traces the input fabric volume (the ground truth every
 //! accuracy figure is measured against) and prints paths per second.
 //!
-//! The scene flags follow Mitsuba 3's conventions (../shared/DESIGN.md §8; the mapping
+//! The scene flags follow Mitsuba 3's conventions (docs/DESIGN.md §8; the mapping
 //! to a Mitsuba scene is written out in tools/scripts/mitsuba_compare.py), so any image
 //! can be reproduced there.
 
