@@ -32,6 +32,7 @@ use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_cl
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
+use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
 use crate::reference::rng::mix64;
 use crate::reference::{Lookup, MeasureScene, ReferenceError};
@@ -92,6 +93,8 @@ pub struct BakeOptions {
     pub surface_offset: f32,
     /// Flyaway fibers in the model (§5.3.4), or `None` to leave them out.
     pub flyaways: Option<FlyawayOptions>,
+    /// The mip chain (§5.3.5) built from level 0, or `None` for level 0 alone.
+    pub prefilter: Option<PrefilterOptions>,
 }
 
 /// How the flyaways are clustered, covered and fitted.
@@ -138,6 +141,7 @@ impl Default for BakeOptions {
             relief: 0.0,
             surface_offset: 0.0,
             flyaways: Some(FlyawayOptions::default()),
+            prefilter: Some(PrefilterOptions::default()),
         }
     }
 }
@@ -153,6 +157,8 @@ pub enum BakeError {
     Model(#[from] ModelError),
     #[error("clustering: {0}")]
     Cluster(String),
+    #[error("mip chain: {0}")]
+    Prefilter(#[from] PrefilterError),
     #[error("option {name} = {value}: {reason}")]
     BadOption { name: &'static str, value: String, reason: String },
 }
@@ -213,6 +219,8 @@ pub struct BakeReport {
     pub relief: f32,
     pub flyaway_voxels: usize,
     pub flyaways: Option<FlyawayReport>,
+    /// The mip chain's figures per level (fit error, lobes, bytes, time).
+    pub prefilter: Option<PrefilterReport>,
     pub stage_seconds: Vec<(String, f64)>,
     pub total_seconds: f64,
     pub input_bytes: u64,
@@ -343,6 +351,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         reading: options.fit.reading,
         fitted_with_shadowing: options.shadows,
         volumetric: options.volumetric,
+        coarse_visibility: false,
         fit_error: vec![fit_error],
         source_bbox: bbox,
         source_dims: [nx as u32, ny as u32, nz as u32],
@@ -525,6 +534,15 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         flyaway_report = Some(rep);
     }
     model.validate()?;
+    // 6. The mip chain.
+    let mut prefilter_report = None;
+    if let Some(po) = &options.prefilter {
+        let t = Instant::now();
+        let (chained, r) = prefilter(&model, po, progress)?;
+        model = chained;
+        stage("prefilter", t);
+        prefilter_report = Some(r);
+    }
     let model_bytes = fabric_runtime::hybrid::format::to_bytes(&model).map(|b| b.len() as u64).unwrap_or(0);
     let report = BakeReport {
         dims: [nx, ny, nz],
@@ -553,6 +571,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         relief: options.relief,
         flyaway_voxels: geometry.flyaways.len(),
         flyaways: flyaway_report,
+        prefilter: prefilter_report,
         stage_seconds,
         total_seconds: start.elapsed().as_secs_f64(),
         input_bytes: (texels * nz * 7 * 4) as u64,

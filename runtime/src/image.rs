@@ -60,6 +60,23 @@ impl Image {
         self.pixels[(y * self.width + x) as usize] = v;
     }
 
+    /// The mean of each `factor`×`factor` block (a box filter); the size is divided by
+    /// `factor`, rounding down (a partial block at the right or bottom is dropped).
+    pub fn box_downsample(&self, factor: u32) -> Image {
+        let f = factor.max(1);
+        let (w, h) = (self.width / f, self.height / f);
+        let inv = 1.0 / (f * f) as f32;
+        Image::from_fn(w, h, |x, y| {
+            let mut sum = Vec3::ZERO;
+            for dy in 0..f {
+                for dx in 0..f {
+                    sum += self.get(x * f + dx, y * f + dy);
+                }
+            }
+            sum * inv
+        })
+    }
+
     /// Mean over all pixels and channels.
     pub fn mean(&self) -> f64 {
         let s: f64 = self.pixels.iter().map(|p| (p.x + p.y + p.z) as f64).sum();

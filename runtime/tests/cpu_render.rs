@@ -100,13 +100,18 @@ fn level_follows_the_pixel_footprint() {
     // Straight down over the unit tile: footprint ρ = (1 / pixels) / (1 / 64) texels.
     for (pixels, bias, want) in [(64u32, 0.0f32, 0usize), (32, 0.0, 1), (16, 0.0, 2), (8, 0.0, 3), (4, 0.0, 4), (2, 0.0, 4), (64, 1.0, 1), (32, -1.0, 0), (45, 0.0, 1), (23, 0.0, 1), (22, 0.0, 2)] {
         let cam = Camera { origin: Vec3::new(0.5, 0.5, 2.0), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 1.0 }, width: pixels, height: pixels };
-        let opts = CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() };
+        let opts = CpuRenderOptions { level: LevelChoice::Nearest { bias }, ..Default::default() };
         let (image, stats) = render_with_stats(&m, &cam, &light, &opts).unwrap();
         // ρ = 64/pixels: level ⌊log2 ρ + bias + ½⌋ (45 px: ρ = 1.42, log2 = 0.51 → 1;
         // 23 px: 2.78 → 1.48 → 1; 22 px: 2.91 → 1.54 → 2).
         assert_eq!(stats.level_pixels[want], (pixels * pixels) as u64, "{pixels} px, bias {bias}: {:?}", stats.level_pixels);
         let expect = Vec3::new(0.1 + 0.2 * want as f32, 0.5, 0.9 - 0.2 * want as f32);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px: {}", image.get(pixels / 2, pixels / 2));
+        // Auto blends levels ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ clamped to the chain).
+        let (image, _) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() }).unwrap();
+        let lambda = ((64.0 / pixels as f32).log2() + bias).clamp(0.0, 4.0);
+        let expect = Vec3::new(0.1 + 0.2 * lambda, 0.5, 0.9 - 0.2 * lambda);
+        assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px, λ {lambda}: {}", image.get(pixels / 2, pixels / 2));
     }
     // Fixed levels override the footprint; a level past the chain is an error.
     let cam = Camera { origin: Vec3::new(0.5, 0.5, 2.0), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 1.0 }, width: 8, height: 8 };

@@ -35,6 +35,8 @@ enum Command {
     Geometry(cmd::geometry::GeometryArgs),
     /// Bake a fabric volume into a hybrid model (fitted BRDFs) and measure it on held-out views.
     Bake(cmd::bake::BakeArgs),
+    /// Rebuild a model's mip chain (coarse levels, flyaways with alpha) from its level 0.
+    Prefilter(cmd::prefilter::PrefilterCmdArgs),
 }
 
 /// Restores the default SIGPIPE action so that `fabric inspect … | head` ends quietly
@@ -60,6 +62,7 @@ fn main() -> std::process::ExitCode {
         Command::View(a) => cmd::view::run(a),
         Command::Geometry(a) => cmd::geometry::run(a),
         Command::Bake(a) => cmd::bake::run(a),
+        Command::Prefilter(a) => cmd::prefilter::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

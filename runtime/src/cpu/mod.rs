@@ -28,7 +28,7 @@ pub mod shading;
 
 use glam::Vec3;
 
-pub use render::{PixelTrace, Scene, render, render_with_progress, render_with_stats};
+pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats};
 
 use crate::hybrid::ModelError;
 use crate::scene::{CameraError, LightError};
@@ -36,9 +36,14 @@ use crate::scene::{CameraError, LightError};
 /// Which level of the mip chain shades a pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LevelChoice {
-    /// From the pixel's footprint on the top plane: level ⌊log2 ρ + bias + ½⌋, ρ the
-    /// footprint in level-0 texels (Vulkan's nearest-mip rule), clamped to the chain.
+    /// From the pixel's footprint where its ray meets the height field (the top plane
+    /// if it misses): λ = log2 ρ + bias, ρ the footprint in level-0 texels; levels ⌊λ⌋
+    /// and ⌊λ⌋ + 1 blended by λ − ⌊λ⌋ (Vulkan's linear-mip rule), clamped to the chain.
+    /// λ ≤ 0 shades level 0 alone.
     Auto { bias: f32 },
+    /// The same λ, one level: ⌊λ + ½⌋ (Vulkan's nearest-mip rule). No blending: seams
+    /// where the level changes.
+    Nearest { bias: f32 },
     /// This level everywhere.
     Fixed(u32),
 }

@@ -2,10 +2,11 @@
 //! image loop around it (rayon over rows).
 //!
 //! For a pixel: the camera ray enters the tile's top plane (outside the tile, or from
-//! below: background); the level comes from the pixel's footprint on that plane, or is
-//! fixed; the height field is marched from the entry to the first surface hit; the
-//! flyaway lists of that level are marched over the same stretch and composited front
-//! to back; what they let through sees the surface, shaded with its texel's lobes.
+//! below: background); the height field is marched from the entry to the first surface
+//! hit (every level shares it); the level comes from the pixel's footprint at that hit
+//! (two adjacent levels, blended), or is fixed; per level, the flyaway lists are
+//! marched over the same stretch and composited front to back, and what they let
+//! through sees the surface, shaded with its texel's lobes.
 
 
 // `!(x > 0.0)` is the NaN-aware test (NaN fails it), as the GLSL writes it.
@@ -15,10 +16,10 @@ use rayon::prelude::*;
 
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
-use super::shading::{in_fiber_frame, shade, volume_factor};
+use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
 use crate::brdf::BrdfReading;
-use crate::hybrid::HybridModel;
+use crate::hybrid::{HybridModel, TexelBrdf};
 use crate::image::Image;
 use crate::scene::{Camera, Light, LightSample, Ray};
 
@@ -44,11 +45,33 @@ pub struct Scene<'a> {
     pub(crate) grids: Vec<FlyawayGrid>,
 }
 
+/// The levels that shade a ray: `lo` with weight 1 − `weight`, `hi` with `weight`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelMix {
+    pub lo: usize,
+    pub hi: usize,
+    pub weight: f32,
+}
+
+impl LevelMix {
+    pub fn single(level: usize) -> LevelMix {
+        LevelMix { lo: level, hi: level, weight: 0.0 }
+    }
+}
+
+/// One level's shading of a ray.
+struct LevelShade {
+    radiance: Vec3,
+    opacity: f32,
+    limited: bool,
+    shadow_limited: u32,
+}
+
 /// What one camera ray found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PixelTrace {
     pub radiance: Vec3,
-    /// The level used (None: the ray missed the tile).
+    /// The level used, the finer of a blend's two (None: the ray missed the tile).
     pub level: Option<usize>,
     /// Ray parameter of the surface hit.
     pub surface_t: Option<f32>,
@@ -114,37 +137,59 @@ impl<'a> Scene<'a> {
         Some(t)
     }
 
-    /// The level for pixel (px, py) (continuous, pixel centre at +0.5).
+    /// The level for pixel (px, py) (continuous, pixel centre at +0.5), from its
+    /// footprint on the top plane: the level shading most of the pixel (the lower of a
+    /// blend's two when they weigh the same).
     pub fn pixel_level(&self, px: f32, py: f32) -> usize {
-        let last = self.model.levels.len() - 1;
-        match self.options.level {
-            LevelChoice::Fixed(l) => l as usize,
-            LevelChoice::Auto { bias } => {
-                let rho = self.footprint_texels(px, py);
-                if !(rho > 0.0) {
-                    return 0;
-                }
-                if !rho.is_finite() {
-                    return last;
-                }
-                // Vulkan's nearest-mip rule: λ = log2 ρ + bias, level = ⌊λ + ½⌋.
-                let lambda = rho.log2() + bias;
-                ((lambda + 0.5).floor().max(0.0) as usize).min(last)
-            }
-        }
+        let mix = self.level_mix(px, py, self.model.tile.top_z);
+        if mix.weight > 0.5 { mix.hi } else { mix.lo }
     }
 
-    /// The pixel's footprint on the top plane in level-0 texels: the longer of the
-    /// steps to the next pixel right and down (∞ if one of them misses the plane).
+    /// The levels that shade pixel (px, py) when its ray meets the surface at height `z`.
+    pub fn level_mix(&self, px: f32, py: f32, z: f32) -> LevelMix {
+        let last = self.model.levels.len() - 1;
+        let (bias, nearest) = match self.options.level {
+            LevelChoice::Fixed(l) => return LevelMix::single(l as usize),
+            LevelChoice::Auto { bias } => (bias, false),
+            LevelChoice::Nearest { bias } => (bias, true),
+        };
+        let rho = self.footprint_texels_at(px, py, z);
+        if !(rho > 0.0) {
+            return LevelMix::single(0);
+        }
+        if !rho.is_finite() {
+            return LevelMix::single(last);
+        }
+        let lambda = rho.log2() + bias;
+        if nearest {
+            return LevelMix::single(((lambda + 0.5).floor().max(0.0) as usize).min(last));
+        }
+        if !(lambda > 0.0) {
+            return LevelMix::single(0);
+        }
+        let lo = lambda.floor();
+        if lo as usize >= last {
+            return LevelMix::single(last);
+        }
+        LevelMix { lo: lo as usize, hi: lo as usize + 1, weight: lambda - lo }
+    }
+
+    /// The pixel's footprint on the top plane in level-0 texels (see
+    /// [`Scene::footprint_texels_at`]).
     pub fn footprint_texels(&self, px: f32, py: f32) -> f32 {
+        self.footprint_texels_at(px, py, self.model.tile.top_z)
+    }
+
+    /// The pixel's footprint on the plane at height `z` in level-0 texels: the longer of
+    /// the steps to the next pixel right and down (∞ if one of them misses the plane).
+    pub fn footprint_texels_at(&self, px: f32, py: f32, z: f32) -> f32 {
         let texel = self.model.texel_size();
-        let top = self.model.tile.top_z;
         let on_plane = |x: f32, y: f32| -> Option<Vec2> {
             let r = self.camera.ray(x, y);
-            if !(r.d.z < 0.0) || r.o.z < top {
+            if !(r.d.z < 0.0) || r.o.z < z {
                 return None;
             }
-            Some(r.at((top - r.o.z) / r.d.z).truncate() / texel)
+            Some(r.at((z - r.o.z) / r.d.z).truncate() / texel)
         };
         match (on_plane(px, py), on_plane(px + 1.0, py), on_plane(px, py + 1.0)) {
             (Some(c), Some(a), Some(b)) => (a - c).length().max((b - c).length()),
@@ -162,6 +207,25 @@ impl<'a> Scene<'a> {
         ((i >> level) as u32, (j >> level) as u32)
     }
 
+    /// The four level-ℓ texels around world point `p` with their bilinear weights
+    /// (texel centres at +½; wrapped on a periodic tile, clamped at a clamped tile's
+    /// edges): coarse levels are filtered like a texture's mip levels, so that a pixel
+    /// between four coarse texels sees their blend rather than one of them. Level 0 is
+    /// shaded by its nearest texel (the model's own data).
+    pub fn bilinear_texels(&self, p: Vec3, level: usize) -> [(TexelBrdf, f32); 4] {
+        let m = self.model;
+        let l = &m.levels[level];
+        let (w, h) = (l.width as i32, l.height as i32);
+        let span = (1u32 << level) as f32;
+        let u = (p.truncate() - m.tile.origin) / (m.texel_size() * span) - Vec2::splat(0.5);
+        let (i0, j0) = (u.x.floor(), u.y.floor());
+        let (fx, fy) = (u.x - i0, u.y - j0);
+        let index = |i: i32, n: i32| if self.options.periodic { i.rem_euclid(n) } else { i.clamp(0, n - 1) };
+        let (i0, j0) = (i0 as i32, j0 as i32);
+        let texel = |di: i32, dj: i32, weight: f32| (l.texel_brdf(index(i0 + di, w) as u32, index(j0 + dj, h) as u32), weight);
+        [texel(0, 0, (1.0 - fx) * (1.0 - fy)), texel(1, 0, fx * (1.0 - fy)), texel(0, 1, (1.0 - fx) * fy), texel(1, 1, fx * fy)]
+    }
+
     /// Visibility of a light from `p` (height-field shadow ray), counting step-limited
     /// shadow rays.
     pub fn visibility(&self, p: Vec3, s: &LightSample, limited: &mut u32) -> f32 {
@@ -173,28 +237,56 @@ impl<'a> Scene<'a> {
         if blocked { 0.0 } else { 1.0 }
     }
 
-    /// Traces one camera ray through continuous pixel position (px, py) at `level`.
+    /// Traces one ray at `level`.
     pub fn trace_ray(&self, ray: &Ray, level: usize) -> PixelTrace {
+        self.trace_mixed(ray, &|_| LevelMix::single(level))
+    }
+
+    /// Traces one ray, shading with the levels `choose(z)` gives for the height z where
+    /// it meets the surface (the top plane if it misses): the height field is marched
+    /// once, the flyaways and the surface are shaded per level and blended.
+    pub fn trace_mixed(&self, ray: &Ray, choose: &dyn Fn(f32) -> LevelMix) -> PixelTrace {
         let mut out = PixelTrace { radiance: self.options.background, ..Default::default() };
         let Some(t_top) = self.enter_top(ray) else {
             return out;
         };
-        out.level = Some(level);
-        let wo = -ray.d;
         let mut steps = 0;
         let hit = self.tracer.trace(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps);
         out.step_limited = hit == HfTrace::StepLimit;
         out.steps = steps;
-        // The flyaways lie between the top plane and the surface (or the slab's bottom).
+        if let HfTrace::Hit(t) = hit {
+            out.surface_t = Some(t);
+        }
+        let z = out.surface_t.map_or(self.model.tile.top_z, |t| ray.at(t).z);
+        let mix = choose(z);
+        out.level = Some(mix.lo);
+        let lo = self.shade_level(ray, t_top, out.surface_t, mix.lo);
+        out.radiance = lo.radiance;
+        out.flyaway_opacity = lo.opacity;
+        out.step_limited |= lo.limited;
+        out.shadow_step_limited = lo.shadow_limited;
+        if mix.weight > 0.0 && mix.hi != mix.lo {
+            let hi = self.shade_level(ray, t_top, out.surface_t, mix.hi);
+            let w = mix.weight;
+            out.radiance = out.radiance * (1.0 - w) + hi.radiance * w;
+            out.flyaway_opacity = out.flyaway_opacity * (1.0 - w) + hi.opacity * w;
+            out.step_limited |= hi.limited;
+            out.shadow_step_limited += hi.shadow_limited;
+        }
+        out
+    }
+
+    /// The flyaways of `level` between the top plane (t_top) and the surface (or the
+    /// slab's bottom), composited front to back over the surface hit at `surface_t`.
+    fn shade_level(&self, ray: &Ray, t_top: f32, surface_t: Option<f32>, level: usize) -> LevelShade {
+        let wo = -ray.d;
         let t_bottom = t_top + self.model.tile.height_scale / -ray.d.z;
-        let t_end = match hit {
-            HfTrace::Hit(t) => t,
-            _ => t_bottom,
-        };
+        let t_end = surface_t.unwrap_or(t_bottom);
         let mut shadow_limited = 0u32;
         let l = &self.model.levels[level];
         let mut transmittance = 1.0;
         let mut radiance = Vec3::ZERO;
+        let mut limited = false;
         if let Some(f) = l.flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
             let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in| {
                 let p = ray.at(t_in);
@@ -203,41 +295,45 @@ impl<'a> Scene<'a> {
             });
             radiance = march.radiance;
             transmittance = march.transmittance;
-            out.flyaway_opacity = 1.0 - transmittance;
-            out.step_limited |= march.limited;
+            limited = march.limited;
         }
-        if let HfTrace::Hit(t) = hit {
-            out.surface_t = Some(t);
-            if transmittance > 0.0 {
-                let p = ray.at(t);
-                let (i, j) = self.texel_at(p, level);
-                let b = l.texel_brdf(i, j);
-                let volumetric = self.model.meta.volumetric;
-                radiance += transmittance
-                    * shade(&b, p, wo, self.lights, self.reading, |p, s| {
-                        let v = self.visibility(p, s, &mut shadow_limited);
-                        if volumetric { v * volume_factor(s.wi, wo) } else { v }
-                    });
-            }
+        if let Some(t) = surface_t
+            && transmittance > 0.0
+        {
+            let p = ray.at(t);
+            let volumetric = self.model.meta.volumetric;
+            // Coarse levels of a prefiltered model carry the light's visibility.
+            let shadowed = level == 0 || !self.model.meta.coarse_visibility;
+            let visible = |p: Vec3, s: &LightSample| {
+                let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
+                if volumetric { v * volume_factor(s.wi, wo) } else { v }
+            };
+            radiance += transmittance
+                * if level == 0 {
+                    let (i, j) = self.texel_at(p, 0);
+                    shade(&l.texel_brdf(i, j), p, wo, self.lights, self.reading, visible)
+                } else {
+                    shade_blend(&self.bilinear_texels(p, level), p, wo, self.lights, self.reading, visible)
+                };
         }
-        out.radiance = radiance + transmittance * if out.surface_t.is_some() { Vec3::ZERO } else { self.options.background };
-        out.shadow_step_limited = shadow_limited;
-        out
+        let background = if surface_t.is_some() { Vec3::ZERO } else { self.options.background };
+        LevelShade { radiance: radiance + transmittance * background, opacity: 1.0 - transmittance, limited, shadow_limited }
     }
 
-    /// One pixel: s×s samples on a regular grid, one level from the pixel's centre.
+    /// One pixel: s×s samples on a regular grid, the levels from the pixel's footprint
+    /// at each sample's surface hit.
     pub fn trace_pixel(&self, x: u32, y: u32) -> PixelTrace {
         let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
-        let level = self.pixel_level(cx, cy);
+        let choose = |z: f32| self.level_mix(cx, cy, z);
         let s = self.options.supersampling;
         if s == 1 {
-            return self.trace_ray(&self.camera.ray(cx, cy), level);
+            return self.trace_mixed(&self.camera.ray(cx, cy), &choose);
         }
         let mut acc = PixelTrace::default();
         let inv = 1.0 / s as f32;
         for a in 0..s {
             for b in 0..s {
-                let t = self.trace_ray(&self.camera.ray(x as f32 + (b as f32 + 0.5) * inv, y as f32 + (a as f32 + 0.5) * inv), level);
+                let t = self.trace_mixed(&self.camera.ray(x as f32 + (b as f32 + 0.5) * inv, y as f32 + (a as f32 + 0.5) * inv), &choose);
                 acc.radiance += t.radiance;
                 acc.level = acc.level.or(t.level);
                 acc.surface_t = acc.surface_t.or(t.surface_t);

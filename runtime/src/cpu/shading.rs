@@ -73,3 +73,21 @@ pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfRe
     }
     radiance
 }
+
+/// [`shade`] for a blend of texels (the bilinear filter of a coarse level): Σ_lights
+/// E · V · Σ_k w_k · response_k, each light's visibility evaluated once.
+pub fn shade_blend(texels: &[(TexelBrdf, f32)], p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
+    let mut radiance = Vec3::ZERO;
+    for light in lights {
+        let s = light.sample(p);
+        if s.irradiance.max_element() <= 0.0 {
+            continue;
+        }
+        let response: Vec3 = texels.iter().map(|(b, w)| *w * texel_response(b, s.wi, wo, reading)).sum();
+        if response.max_element() <= 0.0 {
+            continue;
+        }
+        radiance += s.irradiance * response * visible(p, &s);
+    }
+    radiance
+}

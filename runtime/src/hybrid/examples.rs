@@ -28,6 +28,7 @@ pub fn example_meta(tile: &Tile, levels: usize, dims: [u32; 3]) -> BakeMetadata 
         reading: BrdfReading::Bounded,
         fitted_with_shadowing: false,
         volumetric: false,
+        coarse_visibility: false,
         fit_error: vec![-1.0; levels],
         source_bbox: Aabb::new(min, max),
         source_dims: dims,

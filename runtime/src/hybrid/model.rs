@@ -168,6 +168,10 @@ pub struct BakeMetadata {
     /// Whether surface hits carry the volumetric factor 2/(μ_i + μ_o)
     /// (`cpu::shading::volume_factor`; format 1.1).
     pub volumetric: bool,
+    /// Whether the coarse levels' BRDFs carry the light's height-field visibility,
+    /// averaged over their footprint (the prefilter's, format 1.2): renderers shade
+    /// levels ≥ 1 without shadow rays then.
+    pub coarse_visibility: bool,
     /// Relative fit error per level (≥ 0), or negative where not measured.
     pub fit_error: Vec<f32>,
     /// Bounding box of the source volume.

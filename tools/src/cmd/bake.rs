@@ -140,6 +140,11 @@ pub struct BakeArgs {
     /// Directory for the held-out pictures [default: beside the model, NAME-views/].
     #[arg(long)]
     pub pictures: Option<PathBuf>,
+    /// Write level 0 only (no mip chain).
+    #[arg(long)]
+    pub no_prefilter: bool,
+    #[command(flatten)]
+    pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
 
 pub fn run(args: BakeArgs) -> Result<()> {
@@ -195,6 +200,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             AlphaArg::Density => FlyawayAlpha::Density,
         },
     });
+    options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -242,6 +248,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
             100.0 * f.error_fitted,
             f.problem.as_ref().map(|p| format!(" ({p})")).unwrap_or_default()
         );
+    }
+    if let Some(p) = &r.prefilter {
+        crate::cmd::prefilter::print_report(p);
     }
     for p in &r.cluster_problems {
         println!("warning: cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);

@@ -7,6 +7,7 @@ pub mod generate;
 pub mod geometry;
 pub mod inspect;
 pub mod inspect_model;
+pub mod prefilter;
 pub mod reference;
 pub mod render;
 pub mod render_cpu;

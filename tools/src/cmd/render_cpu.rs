@@ -15,7 +15,8 @@ use crate::args::{CameraArgs, LightArgs, OutputArgs};
 /// Flags of the CPU backend (the camera, light and output flags are the shared ones).
 #[derive(Args, Clone, Debug)]
 pub struct CpuRenderFlags {
-    /// Level of the mip chain: "auto" (from each pixel's footprint) or a level number.
+    /// Level of the mip chain: "auto" (from each pixel's footprint, adjacent levels
+    /// blended), "nearest" (the nearest level, no blending) or a level number.
     #[arg(long, default_value = "auto", value_parser = parse_level)]
     pub level: LevelFlag,
     /// Added to log2 of the footprint with --level auto (positive: coarser).
@@ -39,6 +40,7 @@ pub struct CpuRenderFlags {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LevelFlag {
     Auto,
+    Nearest,
     Fixed(u32),
 }
 
@@ -46,7 +48,10 @@ fn parse_level(s: &str) -> Result<LevelFlag, String> {
     if s == "auto" {
         return Ok(LevelFlag::Auto);
     }
-    s.parse().map(LevelFlag::Fixed).map_err(|_| format!("expected 'auto' or a level number, got '{s}'"))
+    if s == "nearest" {
+        return Ok(LevelFlag::Nearest);
+    }
+    s.parse().map(LevelFlag::Fixed).map_err(|_| format!("expected 'auto', 'nearest' or a level number, got '{s}'"))
 }
 
 impl CpuRenderFlags {
@@ -54,6 +59,7 @@ impl CpuRenderFlags {
         CpuRenderOptions {
             level: match self.level {
                 LevelFlag::Auto => LevelChoice::Auto { bias: self.level_bias },
+                LevelFlag::Nearest => LevelChoice::Nearest { bias: self.level_bias },
                 LevelFlag::Fixed(n) => LevelChoice::Fixed(n),
             },
             periodic: self.periodic,

@@ -27,7 +27,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 1;
+pub const VERSION_MINOR: u16 = 2;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -44,6 +44,9 @@ pub const MODEL_SECTION_SIZE: usize = 64;
 pub const MODEL_FLAG_SHADOWING: u32 = 1;
 /// MODEL flags bit 1: surface hits carry the volumetric factor 2/(μ_i + μ_o) (1.1).
 pub const MODEL_FLAG_VOLUMETRIC: u32 = 2;
+/// MODEL flags bit 2: the coarse levels' BRDFs carry the light's height-field
+/// visibility; renderers shade levels ≥ 1 without shadow rays (1.2).
+pub const MODEL_FLAG_COARSE_VISIBILITY: u32 = 4;
 
 /// Section kinds (runtime/HYBRID_FORMAT.md §"Sections").
 #[repr(u32)]

@@ -1,0 +1,326 @@
+//! The mip chain of a hybrid model (paper §5.3.5): from a model's level 0, every
+//! coarser level down to 1×1 — per-texel framed lobes fitted to their level-0
+//! footprint ([`lobe_fit`]), and flyaway voxels merged with coverage α ([`flyaways`]).
+//! No renderings: the fit works on BRDF evaluations over a fixed set of direction
+//! pairs ([`pairs`]), each level-0 texel weighted by what a distant pixel sees of it —
+//! its visible projected area toward ω_o and, for models shaded with shadows, the
+//! light's visibility toward ω_i, both from height-field rays ([`TargetAcc`]); the
+//! coarse levels then carry the light's visibility and are shaded without shadow rays
+//! (MODEL flag bit 2, format 1.2). The height field is not filtered; every level
+//! marches level 0's.
+//!
+//! Texel (i, j) of level ℓ covers level-0 texels [i·2^ℓ, (i+1)·2^ℓ) × [j·2^ℓ, (j+1)·2^ℓ)
+//! clipped to the tile (runtime/HYBRID_FORMAT.md §"Levels"); its target is the mean
+//! response of those texels, computed once per level as the count-weighted mean of its
+//! children's targets (exact: the pairs are shared).
+
+pub mod far_view;
+pub mod flyaways;
+pub mod lobe_fit;
+pub mod pairs;
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use fabric_runtime::brdf::MAX_LOBES;
+use fabric_runtime::brdf::BrdfReading;
+use fabric_runtime::cpu::heightfield::HeightTracer;
+use fabric_runtime::cpu::shading::texel_response;
+use fabric_runtime::hybrid::TexelBrdf;
+use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
+
+use crate::progress::{Progress, stage};
+use lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
+use pairs::{Pair, fit_pairs};
+
+/// How to prefilter.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PrefilterOptions {
+    /// Relative error (Eq. 8-like, over the pairs) at which a texel stops adding lobes.
+    pub tolerance: f32,
+    /// Most lobes per coarse texel (1..=8).
+    pub max_lobes: usize,
+    /// Direction pairs each texel is fitted on.
+    pub pairs: usize,
+    /// Levels in all, level 0 included (None: down to 1×1).
+    pub levels: Option<usize>,
+    /// Merge the flyaways into every level.
+    pub flyaways: bool,
+    /// Weight each level-0 texel by its visible projected area toward ω_o (what a far
+    /// pixel sees of it) rather than equally.
+    pub masking: bool,
+    /// Fold the light's height-field visibility into the coarse BRDFs (and shade coarse
+    /// levels without shadow rays), rather than tracing shadow rays at every level.
+    pub light_visibility: bool,
+    /// Trace the visibility of the footprints on a repeating tile (as fabrics are
+    /// rendered: `--periodic`); otherwise rays leave at the tile's edges.
+    pub periodic: bool,
+    /// Nelder–Mead evaluations per free width (0: moments and NNLS only).
+    pub evals_per_dim: usize,
+    pub seed: u64,
+}
+
+impl Default for PrefilterOptions {
+    fn default() -> Self {
+        PrefilterOptions { tolerance: 0.03, max_lobes: MAX_LOBES, pairs: 128, levels: None, flyaways: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, seed: 1 }
+    }
+}
+
+/// Why prefiltering cannot run.
+#[derive(Debug, thiserror::Error)]
+pub enum PrefilterError {
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error("the prefiltered model is invalid ({0}): a bug in the prefilter, please report it")]
+    Output(ModelError),
+    #[error("invalid prefilter options: {0}")]
+    Options(String),
+}
+
+/// One level's figures.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct LevelReport {
+    pub level: usize,
+    pub width: u32,
+    pub height: u32,
+    pub max_lobes: usize,
+    pub mean_lobes: f64,
+    /// Mean over texels of the relative error E.
+    pub fit_error: f64,
+    /// 95th percentile of E over texels.
+    pub fit_error_p95: f64,
+    /// Mean E with at most 1, 2, … 8 lobes allowed (from the same pass; counts the
+    /// doubling skips repeat the next fewer).
+    pub error_by_lobes: Vec<f64>,
+    pub surface_bytes: u64,
+    pub flyaway_nodes: usize,
+    pub flyaway_bytes: u64,
+    pub seconds: f64,
+}
+
+/// What a prefilter did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PrefilterReport {
+    pub pairs: usize,
+    pub tolerance: f32,
+    pub levels: Vec<LevelReport>,
+    pub seconds: f64,
+    /// Bytes of level 0 and of the coarse levels (surface and flyaways).
+    pub level0_bytes: u64,
+    pub chain_bytes: u64,
+}
+
+fn level_bytes(l: &Level) -> u64 {
+    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size())
+}
+
+/// Level-0 texels under texel (i, j) of level ℓ, along one axis of `n` texels.
+fn extent(c: u32, level: usize, n: u32) -> u32 {
+    let span = 1u32 << level;
+    ((c + 1) * span).min(n).saturating_sub(c * span)
+}
+
+/// Rebuilds every level of `model` above 0 from level 0 (which, with the height field
+/// and the metadata other than the fit errors, is kept as it is).
+pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Progress) -> Result<(HybridModel, PrefilterReport), PrefilterError> {
+    model.validate()?;
+    if !(opts.tolerance >= 0.0 && opts.tolerance.is_finite()) {
+        return Err(PrefilterError::Options(format!("tolerance {} must be finite and ≥ 0", opts.tolerance)));
+    }
+    if !(1..=MAX_LOBES).contains(&opts.max_lobes) {
+        return Err(PrefilterError::Options(format!("max_lobes {} must be in 1..={MAX_LOBES}", opts.max_lobes)));
+    }
+    if !(4..=4096).contains(&opts.pairs) {
+        return Err(PrefilterError::Options(format!("pairs {} must be in 4..=4096", opts.pairs)));
+    }
+    let (w0, h0) = (model.width(), model.height_px());
+    let most = max_levels(w0, h0);
+    let count = opts.levels.unwrap_or(most);
+    if count == 0 || count > most {
+        return Err(PrefilterError::Options(format!("{count} levels asked; a {w0}×{h0} model has 1..={most}")));
+    }
+    let start = Instant::now();
+    let pairs = fit_pairs(opts.pairs, opts.seed);
+    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, evals_per_dim: opts.evals_per_dim };
+    let mut out = model.clone();
+    out.levels.truncate(1);
+    let mut report = PrefilterReport { pairs: pairs.len(), tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
+    let texels: u64 = (1..count).map(|l| level_dims(w0, h0, l)).map(|(w, h)| w as u64 * h as u64).sum();
+    let bar = stage(progress, "prefilter", texels);
+    // Targets of the level below (None for level 0: evaluated where needed).
+    let mut finer_targets: Option<Vec<TargetAcc>> = None;
+    let np = pairs.len();
+    let tracer = HeightTracer::new(model, opts.periodic);
+    let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
+    let texel = model.texel_size();
+    for level in 1..count {
+        let t0 = Instant::now();
+        let (lw, lh) = level_dims(w0, h0, level);
+        let finer = &out.levels[level - 1];
+        let (fw, fh) = (finer.width, finer.height);
+        let reading = model.meta.reading;
+        let level0 = &out.levels[0];
+        // The children of coarse texel (i, j) at the finer level, with their level-0 counts.
+        let children = |i: u32, j: u32| {
+            let mut c = Vec::with_capacity(4);
+            for (ci, cj) in [(2 * i, 2 * j), (2 * i + 1, 2 * j), (2 * i, 2 * j + 1), (2 * i + 1, 2 * j + 1)] {
+                if ci < fw && cj < fh {
+                    c.push((ci, cj, extent(ci, level - 1, w0) * extent(cj, level - 1, h0)));
+                }
+            }
+            c
+        };
+        let fits: Vec<(CoarseFit, Vec<TargetAcc>)> = (0..lw * lh)
+            .into_par_iter()
+            .map(|index| {
+                let (i, j) = (index % lw, index / lw);
+                let kids = children(i, j);
+                let total: u32 = kids.iter().map(|k| k.2).sum();
+                let mut acc = vec![TargetAcc::default(); np];
+                let mut candidates = Vec::new();
+                let mut kd_normal = Vec3::ZERO; // k_d-weighted; zero without diffuse
+                for &(ci, cj, n) in &kids {
+                    let share = n as f32 / total.max(1) as f32;
+                    match &finer_targets {
+                        Some(t) => {
+                            for (a, v) in acc.iter_mut().zip(&t[(cj * fw + ci) as usize * np..][..np]) {
+                                a.add(v);
+                            }
+                        }
+                        None => level0_target(&level0.texel_brdf(ci, cj), &tracer, model, texel, ci, cj, &pairs, (opts.masking, shadowed), reading, &mut acc),
+                    }
+                    let b = finer.texel_brdf(ci, cj);
+                    let p = &b.params;
+                    kd_normal += share * luminance(p.kd) * b.frames[0].n;
+                    for (lobe, f) in p.lobes().iter().zip(&b.frames) {
+                        candidates.push(Candidate { n: f.n, t: f.t, k: lobe.k, beta: lobe.beta, gamma: lobe.gamma, eta: p.eta, a: p.a, weight: share * luminance(lobe.k).max(1e-6) });
+                    }
+                }
+                let target: Vec<Vec3> = acc.iter().map(TargetAcc::value).collect();
+                let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal, target: &target }, &pairs, &settings);
+                bar.advance(1);
+                (fit, acc)
+            })
+            .collect();
+        let mut table = BrdfTable::new();
+        let mut targets = Vec::with_capacity(fits.len() * np);
+        let mut errors: Vec<f64> = Vec::with_capacity(fits.len());
+        let mut by_lobes = [0f64; MAX_LOBES];
+        let mut lobes_total = 0usize;
+        let mut lobes_max = 0usize;
+        for (fit, acc) in fits {
+            table.push_framed(fit.kd, fit.eta, fit.a, &fit.lobes);
+            targets.extend(acc);
+            errors.push(fit.error as f64);
+            for (acc, e) in by_lobes.iter_mut().zip(fit.error_by_count) {
+                *acc += e as f64;
+            }
+            lobes_total += fit.lobes.len();
+            lobes_max = lobes_max.max(fit.lobes.len());
+        }
+        let n = errors.len().max(1) as f64;
+        let fit_error = errors.iter().sum::<f64>() / n;
+        errors.sort_by(|a, b| a.total_cmp(b));
+        let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
+        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level).map_err(PrefilterError::Output)? } else { None };
+        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways };
+        report.levels.push(LevelReport {
+            level,
+            width: lw,
+            height: lh,
+            max_lobes: lobes_max,
+            mean_lobes: lobes_total as f64 / n,
+            fit_error,
+            fit_error_p95: p95,
+            error_by_lobes: by_lobes.iter().map(|e| e / n).collect(),
+            surface_bytes: l.surface_bytes(),
+            flyaway_nodes: l.flyaways.as_ref().map_or(0, |f| f.nodes.len()),
+            flyaway_bytes: l.flyaways.as_ref().map_or(0, |f| f.byte_size()),
+            seconds: t0.elapsed().as_secs_f64(),
+        });
+        report.chain_bytes += level_bytes(&l);
+        out.levels.push(l);
+        finer_targets = Some(targets);
+    }
+    drop(bar);
+    let mut errors = vec![-1.0f32; count];
+    if let Some(&e0) = model.meta.fit_error.first() {
+        errors[0] = e0;
+    }
+    for r in &report.levels {
+        errors[r.level] = r.fit_error as f32;
+    }
+    out.meta.fit_error = errors;
+    out.meta.coarse_visibility = shadowed;
+    out.validate().map_err(PrefilterError::Output)?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok((out, report))
+}
+
+/// A coarse texel's target at one pair, as sums over its level-0 texels τ:
+/// T = Σ A_τ V_τ f_τ / Σ A_τ, A_τ = the visible projected area of τ toward ω_o (what
+/// fraction of a distant pixel's rays meet τ), V_τ the light's visibility from τ (when
+/// the model is shaded with shadows), f_τ its response. A far pixel's value is then the
+/// mean of its coarse texels' targets, as the supersampled level 0 gives it. Where no
+/// part of the footprint is seen from ω_o the plain mean stands in.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TargetAcc {
+    pub num: Vec3,
+    pub den: f32,
+    pub plain: Vec3,
+    pub count: f32,
+}
+
+impl TargetAcc {
+    fn add(&mut self, o: &TargetAcc) {
+        self.num += o.num;
+        self.den += o.den;
+        self.plain += o.plain;
+        self.count += o.count;
+    }
+
+    pub fn value(&self) -> Vec3 {
+        if self.den > 1e-6 * self.count {
+            self.num / self.den
+        } else if self.count > 0.0 {
+            self.plain / self.count
+        } else {
+            Vec3::ZERO
+        }
+    }
+}
+
+/// Adds level-0 texel (i, j) to `acc`: its response at each pair, weighted by its
+/// visible projected area toward ω_o (height-field ray from the texel's centre; the
+/// area of a height-field patch seen along ω per unit of plane is ∇d·ω_xy + ω_z, d the
+/// depth) when `masking`, and by the light's visibility toward ω_i when `shadowed`.
+#[allow(clippy::too_many_arguments)] // one texel's inputs
+fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texel: Vec2, i: u32, j: u32, pairs: &[Pair], (masking, shadowed): (bool, bool), reading: BrdfReading, acc: &mut [TargetAcc]) {
+    let (x, y) = (model.tile.origin.x + (i as f32 + 0.5) * texel.x, model.tile.origin.y + (j as f32 + 0.5) * texel.y);
+    let d = tracer.depth_at(x, y);
+    let p = Vec3::new(x, y, model.tile.top_z - d);
+    let gx = (tracer.depth_at(x + 0.5 * texel.x, y) - tracer.depth_at(x - 0.5 * texel.x, y)) / texel.x;
+    let gy = (tracer.depth_at(x, y + 0.5 * texel.y) - tracer.depth_at(x, y - 0.5 * texel.y)) / texel.y;
+    let seen = |w: Vec3| !tracer.occluded(p, w, f32::MAX, VISIBILITY_STEPS).0;
+    for (a, &(wi, wo)) in acc.iter_mut().zip(pairs) {
+        let f = texel_response(b, wi, wo, reading);
+        let lit = if !shadowed || seen(wi) { 1.0 } else { 0.0 };
+        let area = if !masking { 1.0 } else if seen(wo) { (gx * wo.x + gy * wo.y + wo.z).max(0.0) } else { 0.0 };
+        a.num += area * lit * f;
+        a.den += area;
+        a.plain += lit * f;
+        a.count += 1.0;
+    }
+}
+
+/// Step budget of the prefilter's visibility rays.
+const VISIBILITY_STEPS: u32 = 4096;
+
+/// Rec. 709 luminance.
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+

@@ -1,0 +1,138 @@
+//! `fabric prefilter IN.hyb --out OUT.hyb`: rebuilds the mip chain of an existing model
+//! from its level 0 (paper §5.3.5) and prints, per level, its size, lobes and fit error.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use fabric_baker::prefilter::{PrefilterOptions, PrefilterReport, prefilter};
+use fabric_runtime::hybrid::format::{read_file, write_file};
+
+use crate::progress::Bars;
+
+/// The prefilter's flags, shared with `fabric bake`.
+#[derive(Args, Debug, Clone)]
+pub struct PrefilterArgs {
+    /// Relative fit error at which a coarse texel stops adding lobes.
+    #[arg(long, default_value_t = 0.03)]
+    pub prefilter_tolerance: f32,
+    /// Most lobes per coarse texel (1..=8).
+    #[arg(long, default_value_t = 8)]
+    pub prefilter_max_lobes: usize,
+    /// Direction pairs each coarse texel is fitted on.
+    #[arg(long, default_value_t = 128)]
+    pub prefilter_pairs: usize,
+    /// Levels in all, level 0 included [default: down to 1x1].
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// Weight each level-0 texel by its visible projected area toward the viewer
+    /// (baker/PREFILTER_MEASUREMENTS.md: helps grazing views of twill, hurts bumpy models).
+    #[arg(long)]
+    pub masking: bool,
+    /// Fold the light's height-field visibility into the coarse BRDFs and shade coarse
+    /// levels without shadow rays (format 1.2, MODEL flag bit 2).
+    #[arg(long)]
+    pub light_visibility: bool,
+}
+
+impl PrefilterArgs {
+    pub fn options(&self, seed: u64, flyaways: bool) -> Result<PrefilterOptions> {
+        if !(self.prefilter_tolerance.is_finite() && self.prefilter_tolerance >= 0.0) {
+            bail!("--prefilter-tolerance {}: must be a non-negative number", self.prefilter_tolerance);
+        }
+        if !(1..=8).contains(&self.prefilter_max_lobes) {
+            bail!("--prefilter-max-lobes {}: must be in 1..=8", self.prefilter_max_lobes);
+        }
+        if !(4..=4096).contains(&self.prefilter_pairs) {
+            bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
+        }
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, light_visibility: self.light_visibility, seed, ..Default::default() })
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct PrefilterCmdArgs {
+    /// The hybrid model whose level 0 is kept.
+    pub input: PathBuf,
+    /// The model to write, with the rebuilt levels.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Leave the coarse levels without flyaways.
+    #[arg(long)]
+    pub no_flyaways: bool,
+    /// The JSON report [default: OUT with .json].
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Measure the chain afterwards: far views (16 and 32 px across the tile at 0°, 45°,
+    /// 70°) and a distance sweep, against level 0 with 64 samples per pixel.
+    #[arg(long)]
+    pub check: bool,
+    #[command(flatten)]
+    pub prefilter: PrefilterArgs,
+}
+
+/// Prints the far-view and sweep errors of `model`; returns them for the report.
+pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel) -> Result<serde_json::Value> {
+    use fabric_baker::prefilter::far_view::{distance_sweep, far_view};
+    println!("far views (relative RMSE against level 0 at >= 4x4 samples per texel): auto levels 1 spp | nearest level 1 spp | level 0 1 spp | truth's own noise");
+    let mut views = Vec::new();
+    for pixels in [16u32, 32] {
+        for polar in [0.0f32, 45.0, 70.0] {
+            let e = far_view(model, polar, pixels)?;
+            println!("  {pixels:>3} px ({:>4.1} texels/px) at {polar:>4.1}°: {:>6.2}% | {:>6.2}% | {:>6.2}% | {:>5.2}%", e.texels_per_pixel, 100.0 * e.chain, 100.0 * e.chain_nearest, 100.0 * e.level0, 100.0 * e.truth_noise);
+            views.push(e);
+        }
+    }
+    println!("distance sweep (32x32 px, perspective, 45°):");
+    let sweep = distance_sweep(model, 32, 8)?;
+    for s in &sweep {
+        println!("  {:>6.2} texels/px: {:>6.2}% | {:>6.2}% | {:>6.2}% | {:>5.2}%", s.texels_per_pixel, 100.0 * s.chain, 100.0 * s.chain_nearest, 100.0 * s.level0, 100.0 * s.truth_noise);
+    }
+    Ok(serde_json::json!({ "far_views": views, "distance_sweep": sweep }))
+}
+
+/// Prints a report's table.
+pub fn print_report(r: &PrefilterReport) {
+    println!("prefilter: {} direction pairs, tolerance {:.1}%", r.pairs, 100.0 * r.tolerance);
+    println!("  level  size       lobes mean/max  fit error mean/p95  error with 1/2/4/8 lobes     surface B  flyaways   time");
+    for l in &r.levels {
+        let e = |n: usize| l.error_by_lobes.get(n - 1).map_or(f64::NAN, |e| 100.0 * e);
+        println!(
+            "  {:>5}  {:>4}x{:<4}  {:>5.2} / {:<3}     {:>6.2}% / {:<6.2}%   {:>5.1}/{:>5.1}/{:>5.1}/{:>5.1}%   {:>10}  {:>8}  {:>5.1} s",
+            l.level,
+            l.width,
+            l.height,
+            l.mean_lobes,
+            l.max_lobes,
+            100.0 * l.fit_error,
+            100.0 * l.fit_error_p95,
+            e(1),
+            e(2),
+            e(4),
+            e(8),
+            l.surface_bytes,
+            l.flyaway_nodes,
+            l.seconds
+        );
+    }
+    let share = if r.level0_bytes > 0 { 100.0 * r.chain_bytes as f64 / r.level0_bytes as f64 } else { 0.0 };
+    println!("  coarse levels {} bytes = {share:.1}% of level 0's {} bytes; {:.1} s", r.chain_bytes, r.level0_bytes, r.seconds);
+}
+
+pub fn run(args: PrefilterCmdArgs) -> Result<()> {
+    let options = args.prefilter.options(args.seed, !args.no_flyaways)?;
+    let model = read_file(&args.input).with_context(|| format!("cannot read {}", args.input.display()))?;
+    let bars = Bars::default();
+    let (out, report) = prefilter(&model, &options, &bars).with_context(|| format!("cannot prefilter {}", args.input.display()))?;
+    bars.finish();
+    print_report(&report);
+    write_file(&out, &args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
+    let check = if args.check { Some(check_chain(&out)?) } else { None };
+    let path = args.report.clone().unwrap_or_else(|| args.out.with_extension("json"));
+    let json = serde_json::json!({ "prefilter": report, "check": check });
+    std::fs::write(&path, serde_json::to_string_pretty(&json)?).with_context(|| format!("cannot write {}", path.display()))?;
+    println!("wrote {} and {}", args.out.display(), path.display());
+    Ok(())
+}
