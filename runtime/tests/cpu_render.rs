@@ -107,9 +107,10 @@ fn level_follows_the_pixel_footprint() {
         assert_eq!(stats.level_pixels[want], (pixels * pixels) as u64, "{pixels} px, bias {bias}: {:?}", stats.level_pixels);
         let expect = Vec3::new(0.1 + 0.2 * want as f32, 0.5, 0.9 - 0.2 * want as f32);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px: {}", image.get(pixels / 2, pixels / 2));
-        // Auto blends levels ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ clamped to the chain).
+        // Auto blends levels ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ clamped to the chain; a
+        // round footprint: one lookup).
         let (image, _) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() }).unwrap();
-        let lambda = ((64.0 / pixels as f32).log2() + bias).clamp(0.0, 4.0);
+        let lambda = ((64.0 / pixels as f32).log2() + fabric_runtime::cpu::render::FILTER_OFFSET + bias).clamp(0.0, 4.0);
         let expect = Vec3::new(0.1 + 0.2 * lambda, 0.5, 0.9 - 0.2 * lambda);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px, λ {lambda}: {}", image.get(pixels / 2, pixels / 2));
     }

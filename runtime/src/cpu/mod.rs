@@ -37,12 +37,13 @@ use crate::scene::{CameraError, LightError};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LevelChoice {
     /// From the pixel's footprint where its ray meets the height field (the top plane
-    /// if it misses): λ = log2 ρ + bias, ρ the footprint in level-0 texels; levels ⌊λ⌋
-    /// and ⌊λ⌋ + 1 blended by λ − ⌊λ⌋ (Vulkan's linear-mip rule), clamped to the chain.
-    /// λ ≤ 0 shades level 0 alone.
+    /// if it misses), filtered anisotropically as a GPU filters a texture: N =
+    /// ⌈major/minor⌉ ≤ 8 lookups along the footprint's major axis, λ = log2(major/N) +
+    /// bias in level-0 texels, levels ⌊λ⌋ and ⌊λ⌋ + 1 blended by λ − ⌊λ⌋ (Vulkan's
+    /// linear-mip rule), clamped to the chain. λ ≤ 0 shades level 0 alone.
     Auto { bias: f32 },
-    /// The same λ, one level: ⌊λ + ½⌋ (Vulkan's nearest-mip rule). No blending: seams
-    /// where the level changes.
+    /// Isotropic, one level: ⌊log2 major + bias + ½⌋ (Vulkan's nearest-mip rule). No
+    /// blending: seams where the level changes.
     Nearest { bias: f32 },
     /// This level everywhere.
     Fixed(u32),

@@ -51,13 +51,27 @@ pub struct LevelMix {
     pub lo: usize,
     pub hi: usize,
     pub weight: f32,
+    /// Anisotropic filtering of coarse levels: `taps` lookups spread evenly over
+    /// `axis` (world x–y, the footprint's major axis), centred on the hit.
+    pub axis: Vec2,
+    pub taps: u32,
 }
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0 }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1 }
     }
 }
+
+/// Most lookups of the anisotropic filter (a GPU's maxSamplerAnisotropy is 16).
+pub const MAX_ANISOTROPY: u32 = 8;
+
+/// Added to λ so that a coarse level's filter is as wide as the pixel's: a bilinear
+/// lookup of box-filtered texels of size T has variance T²/12 + T²/6 = T²/4, a pixel's
+/// box of size P has P²/12, equal at T = P/√3: λ − ½·log2 3. Measured on a twill far
+/// view at 30° azimuth (16 px across a 128² tile): 22.6% without it, see
+/// baker/PREFILTER_MEASUREMENTS.md.
+pub const FILTER_OFFSET: f32 = -0.792_481_25;
 
 /// One level's shading of a ray.
 struct LevelShade {
@@ -153,25 +167,50 @@ impl<'a> Scene<'a> {
             LevelChoice::Auto { bias } => (bias, false),
             LevelChoice::Nearest { bias } => (bias, true),
         };
-        let rho = self.footprint_texels_at(px, py, z);
-        if !(rho > 0.0) {
+        let Some((a, b)) = self.footprint_axes_at(px, py, z) else {
+            return LevelMix::single(last);
+        };
+        let texel = self.model.texel_size();
+        let (la, lb) = ((a / texel).length(), (b / texel).length());
+        let (major, minor, axis) = if la >= lb { (la, lb, a) } else { (lb, la, b) };
+        if !(major > 0.0) {
             return LevelMix::single(0);
         }
-        if !rho.is_finite() {
+        if !major.is_finite() {
             return LevelMix::single(last);
         }
-        let lambda = rho.log2() + bias;
         if nearest {
+            // Isotropic, as Vulkan's nearest-mip rule: the longer axis.
+            let lambda = major.log2() + bias;
             return LevelMix::single(((lambda + 0.5).floor().max(0.0) as usize).min(last));
         }
+        // Anisotropic (Vulkan's rule, EXT_texture_filter_anisotropic): N = ⌈major/minor⌉
+        // lookups along the major axis at the level of major/N.
+        // 1e-3: a round footprint measured as 8.00001 × 8 is one lookup, not two.
+        let taps = ((major / minor.max(1e-6) - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
+        let lambda = (major / taps as f32).log2() + FILTER_OFFSET + bias;
         if !(lambda > 0.0) {
             return LevelMix::single(0);
         }
         let lo = lambda.floor();
         if lo as usize >= last {
-            return LevelMix::single(last);
+            return LevelMix { axis, taps, ..LevelMix::single(last) };
         }
-        LevelMix { lo: lo as usize, hi: lo as usize + 1, weight: lambda - lo }
+        LevelMix { lo: lo as usize, hi: lo as usize + 1, weight: lambda - lo, axis, taps }
+    }
+
+    /// The steps, in world x–y on the plane at height `z`, to where the rays through the
+    /// next pixel right and down meet it; None if one of them misses the plane.
+    pub fn footprint_axes_at(&self, px: f32, py: f32, z: f32) -> Option<(Vec2, Vec2)> {
+        let on_plane = |x: f32, y: f32| -> Option<Vec2> {
+            let r = self.camera.ray(x, y);
+            if !(r.d.z < 0.0) || r.o.z < z {
+                return None;
+            }
+            Some(r.at((z - r.o.z) / r.d.z).truncate())
+        };
+        let (c, a, b) = (on_plane(px, py)?, on_plane(px + 1.0, py)?, on_plane(px, py + 1.0)?);
+        Some((a - c, b - c))
     }
 
     /// The pixel's footprint on the top plane in level-0 texels (see
@@ -184,16 +223,9 @@ impl<'a> Scene<'a> {
     /// the steps to the next pixel right and down (∞ if one of them misses the plane).
     pub fn footprint_texels_at(&self, px: f32, py: f32, z: f32) -> f32 {
         let texel = self.model.texel_size();
-        let on_plane = |x: f32, y: f32| -> Option<Vec2> {
-            let r = self.camera.ray(x, y);
-            if !(r.d.z < 0.0) || r.o.z < z {
-                return None;
-            }
-            Some(r.at((z - r.o.z) / r.d.z).truncate() / texel)
-        };
-        match (on_plane(px, py), on_plane(px + 1.0, py), on_plane(px, py + 1.0)) {
-            (Some(c), Some(a), Some(b)) => (a - c).length().max((b - c).length()),
-            _ => f32::INFINITY,
+        match self.footprint_axes_at(px, py, z) {
+            Some((a, b)) => (a / texel).length().max((b / texel).length()),
+            None => f32::INFINITY,
         }
     }
 
@@ -260,13 +292,13 @@ impl<'a> Scene<'a> {
         let z = out.surface_t.map_or(self.model.tile.top_z, |t| ray.at(t).z);
         let mix = choose(z);
         out.level = Some(mix.lo);
-        let lo = self.shade_level(ray, t_top, out.surface_t, mix.lo);
+        let lo = self.shade_level(ray, t_top, out.surface_t, mix.lo, &mix);
         out.radiance = lo.radiance;
         out.flyaway_opacity = lo.opacity;
         out.step_limited |= lo.limited;
         out.shadow_step_limited = lo.shadow_limited;
         if mix.weight > 0.0 && mix.hi != mix.lo {
-            let hi = self.shade_level(ray, t_top, out.surface_t, mix.hi);
+            let hi = self.shade_level(ray, t_top, out.surface_t, mix.hi, &mix);
             let w = mix.weight;
             out.radiance = out.radiance * (1.0 - w) + hi.radiance * w;
             out.flyaway_opacity = out.flyaway_opacity * (1.0 - w) + hi.opacity * w;
@@ -278,7 +310,7 @@ impl<'a> Scene<'a> {
 
     /// The flyaways of `level` between the top plane (t_top) and the surface (or the
     /// slab's bottom), composited front to back over the surface hit at `surface_t`.
-    fn shade_level(&self, ray: &Ray, t_top: f32, surface_t: Option<f32>, level: usize) -> LevelShade {
+    fn shade_level(&self, ray: &Ray, t_top: f32, surface_t: Option<f32>, level: usize, mix: &LevelMix) -> LevelShade {
         let wo = -ray.d;
         let t_bottom = t_top + self.model.tile.height_scale / -ray.d.z;
         let t_end = surface_t.unwrap_or(t_bottom);
@@ -312,8 +344,16 @@ impl<'a> Scene<'a> {
                 * if level == 0 {
                     let (i, j) = self.texel_at(p, 0);
                     shade(&l.texel_brdf(i, j), p, wo, self.lights, self.reading, visible)
-                } else {
+                } else if mix.taps <= 1 {
                     shade_blend(&self.bilinear_texels(p, level), p, wo, self.lights, self.reading, visible)
+                } else {
+                    let n = mix.taps;
+                    let mut texels = Vec::with_capacity(4 * n as usize);
+                    for k in 0..n {
+                        let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
+                        texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (b, w / n as f32)));
+                    }
+                    shade_blend(&texels, p, wo, self.lights, self.reading, visible)
                 };
         }
         let background = if surface_t.is_some() { Vec3::ZERO } else { self.options.background };
