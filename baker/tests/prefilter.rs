@@ -2,6 +2,7 @@
 //! choice and the chain's images against supersampled level 0.
 
 use fabric_baker::prefilter::far_view::far_camera_at;
+use fabric_baker::prefilter::flyaways::Coverage;
 use fabric_baker::prefilter::lobe_fit::{Candidate, FitSettings, Footprint, fit_footprint};
 use fabric_baker::prefilter::pairs::fit_pairs;
 use fabric_baker::prefilter::{PrefilterError, PrefilterOptions, prefilter};
@@ -91,7 +92,7 @@ fn flyaway_coverage_is_the_mean_over_the_positions_that_exist() {
     // Half of the 8 positions of the first coarse voxel; 1 of the 2 of the corner's.
     let voxels = [v(0, 0, 0), v(1, 0, 0), v(0, 1, 1), v(1, 1, 1), v(2, 2, 0)];
     add_flyaways(&mut m, 0, &voxels, &plain_params()).unwrap();
-    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), coverage: Coverage::Volume, ..Default::default() }, &NoProgress).unwrap();
     let f = out.levels[1].flyaways.as_ref().expect("level 1 has flyaways");
     let first: Vec<_> = f.list(0).collect();
     assert_eq!(first.len(), 1);
@@ -100,6 +101,17 @@ fn flyaway_coverage_is_the_mean_over_the_positions_that_exist() {
     assert_eq!(corner.len(), 1);
     assert!((corner[0].alpha() - 0.5).abs() < 1e-4, "1 of 2 positions: {}", corner[0].alpha());
     assert!(corner[0].tangent().dot(Vec3::X).abs() > 0.999);
+    // Seen from above: the first coarse voxel's four columns are all covered; the corner
+    // covers one column, covered.
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let f = out.levels[1].flyaways.as_ref().unwrap();
+    assert!((f.list(0).next().unwrap().alpha() - 1.0).abs() < 1e-4);
+    assert!((f.list(3).next().unwrap().alpha() - 1.0).abs() < 1e-4);
+    // One filled voxel of a 2×2×2 block hides a quarter of the view.
+    let mut m = uniform_model(2, 2, 1, flat_tile(8), |_, _| 0.1, &plain_params(), Vec3::Z, Vec3::X).unwrap();
+    add_flyaways(&mut m, 0, &[v(1, 0, 1)], &plain_params()).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    assert!((out.levels[1].flyaways.as_ref().unwrap().list(0).next().unwrap().alpha() - 0.25).abs() < 1e-4);
 }
 
 #[test]

@@ -49,6 +49,8 @@ pub struct PrefilterOptions {
     pub levels: Option<usize>,
     /// Merge the flyaways into every level.
     pub flyaways: bool,
+    /// How a coarse flyaway voxel's α is computed.
+    pub coverage: flyaways::Coverage,
     /// Weight each level-0 texel by its visible projected area toward ω_o (what a far
     /// pixel sees of it) rather than equally.
     pub masking: bool,
@@ -65,7 +67,7 @@ pub struct PrefilterOptions {
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: MAX_LOBES, pairs: 128, levels: None, flyaways: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, seed: 1 }
     }
 }
 
@@ -225,7 +227,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let fit_error = errors.iter().sum::<f64>() / n;
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
-        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level).map_err(PrefilterError::Output)? } else { None };
+        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage).map_err(PrefilterError::Output)? } else { None };
         let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways };
         report.levels.push(LevelReport {
             level,

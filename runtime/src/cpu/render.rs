@@ -55,12 +55,25 @@ pub struct LevelMix {
     /// `axis` (world x–y, the footprint's major axis), centred on the hit.
     pub axis: Vec2,
     pub taps: u32,
+    /// The flyaway levels (lo, hi, weight of hi): from the isotropic footprint without
+    /// [`FILTER_OFFSET`] — voxels are not filtered like texels, and a finer level than
+    /// the pixel aliases their coverage.
+    pub fly: (usize, usize, f32),
 }
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1 }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, fly: (level, level, 0.0) }
     }
+}
+
+/// Levels ⌊λ⌋ and ⌊λ⌋ + 1 with the weight of the second, clamped to 0..=last.
+fn linear_levels(lambda: f32, last: usize) -> (usize, usize, f32) {
+    if !(lambda > 0.0) {
+        return (0, 0, 0.0);
+    }
+    let lo = lambda.floor();
+    if lo as usize >= last { (last, last, 0.0) } else { (lo as usize, lo as usize + 1, lambda - lo) }
 }
 
 /// Most lookups of the anisotropic filter (a GPU's maxSamplerAnisotropy is 16).
@@ -73,10 +86,10 @@ pub const MAX_ANISOTROPY: u32 = 8;
 /// baker/PREFILTER_MEASUREMENTS.md.
 pub const FILTER_OFFSET: f32 = -0.792_481_25;
 
-/// One level's shading of a ray.
-struct LevelShade {
+/// One level's flyaways along a ray.
+struct FlyShade {
     radiance: Vec3,
-    opacity: f32,
+    transmittance: f32,
     limited: bool,
     shadow_limited: u32,
 }
@@ -189,14 +202,9 @@ impl<'a> Scene<'a> {
         // 1e-3: a round footprint measured as 8.00001 × 8 is one lookup, not two.
         let taps = ((major / minor.max(1e-6) - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
         let lambda = (major / taps as f32).log2() + FILTER_OFFSET + bias;
-        if !(lambda > 0.0) {
-            return LevelMix::single(0);
-        }
-        let lo = lambda.floor();
-        if lo as usize >= last {
-            return LevelMix { axis, taps, ..LevelMix::single(last) };
-        }
-        LevelMix { lo: lo as usize, hi: lo as usize + 1, weight: lambda - lo, axis, taps }
+        let (lo, hi, weight) = linear_levels(lambda, last);
+        let fly = linear_levels(major.log2() + bias, last);
+        LevelMix { lo, hi, weight, axis, taps, fly }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -292,72 +300,83 @@ impl<'a> Scene<'a> {
         let z = out.surface_t.map_or(self.model.tile.top_z, |t| ray.at(t).z);
         let mix = choose(z);
         out.level = Some(mix.lo);
-        let lo = self.shade_level(ray, t_top, out.surface_t, mix.lo, &mix);
-        out.radiance = lo.radiance;
-        out.flyaway_opacity = lo.opacity;
-        out.step_limited |= lo.limited;
-        out.shadow_step_limited = lo.shadow_limited;
-        if mix.weight > 0.0 && mix.hi != mix.lo {
-            let hi = self.shade_level(ray, t_top, out.surface_t, mix.hi, &mix);
-            let w = mix.weight;
-            out.radiance = out.radiance * (1.0 - w) + hi.radiance * w;
-            out.flyaway_opacity = out.flyaway_opacity * (1.0 - w) + hi.opacity * w;
-            out.step_limited |= hi.limited;
-            out.shadow_step_limited += hi.shadow_limited;
+        let t_end = out.surface_t.unwrap_or(t_top + self.model.tile.height_scale / -ray.d.z);
+        // The flyaways in front, blended over their levels, then what they let through.
+        let (fl, fh, fw) = mix.fly;
+        let mut fly = self.march_level_flyaways(ray, t_top, t_end, fl);
+        if fw > 0.0 && fh != fl {
+            let hi = self.march_level_flyaways(ray, t_top, t_end, fh);
+            fly.radiance = fly.radiance * (1.0 - fw) + hi.radiance * fw;
+            fly.transmittance = fly.transmittance * (1.0 - fw) + hi.transmittance * fw;
+            fly.limited |= hi.limited;
+            fly.shadow_limited += hi.shadow_limited;
         }
+        out.flyaway_opacity = 1.0 - fly.transmittance;
+        out.step_limited |= fly.limited;
+        out.shadow_step_limited = fly.shadow_limited;
+        let mut behind = self.options.background;
+        if let Some(t) = out.surface_t {
+            behind = Vec3::ZERO;
+            if fly.transmittance > 0.0 {
+                let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix);
+                if mix.weight > 0.0 && mix.hi != mix.lo {
+                    let (hi, l) = self.shade_surface(ray, t, mix.hi, &mix);
+                    surface = surface * (1.0 - mix.weight) + hi * mix.weight;
+                    limited += l;
+                }
+                behind = surface;
+                out.shadow_step_limited += limited;
+            }
+        }
+        out.radiance = fly.radiance + fly.transmittance * behind;
         out
     }
 
-    /// The flyaways of `level` between the top plane (t_top) and the surface (or the
-    /// slab's bottom), composited front to back over the surface hit at `surface_t`.
-    fn shade_level(&self, ray: &Ray, t_top: f32, surface_t: Option<f32>, level: usize, mix: &LevelMix) -> LevelShade {
+    /// The flyaways of `level` over [t_top, t_end], composited front to back.
+    fn march_level_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize) -> FlyShade {
         let wo = -ray.d;
-        let t_bottom = t_top + self.model.tile.height_scale / -ray.d.z;
-        let t_end = surface_t.unwrap_or(t_bottom);
-        let mut shadow_limited = 0u32;
-        let l = &self.model.levels[level];
-        let mut transmittance = 1.0;
-        let mut radiance = Vec3::ZERO;
-        let mut limited = false;
-        if let Some(f) = l.flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+        let mut out = FlyShade { radiance: Vec3::ZERO, transmittance: 1.0, limited: false, shadow_limited: 0 };
+        if let Some(f) = self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+            let mut shadow_limited = 0u32;
             let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in| {
                 let p = ray.at(t_in);
                 let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
                 shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited))
             });
-            radiance = march.radiance;
-            transmittance = march.transmittance;
-            limited = march.limited;
+            out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
-        if let Some(t) = surface_t
-            && transmittance > 0.0
-        {
-            let p = ray.at(t);
-            let volumetric = self.model.meta.volumetric;
-            // Coarse levels of a prefiltered model carry the light's visibility.
-            let shadowed = level == 0 || !self.model.meta.coarse_visibility;
-            let visible = |p: Vec3, s: &LightSample| {
-                let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
-                if volumetric { v * volume_factor(s.wi, wo) } else { v }
-            };
-            radiance += transmittance
-                * if level == 0 {
-                    let (i, j) = self.texel_at(p, 0);
-                    shade(&l.texel_brdf(i, j), p, wo, self.lights, self.reading, visible)
-                } else if mix.taps <= 1 {
-                    shade_blend(&self.bilinear_texels(p, level), p, wo, self.lights, self.reading, visible)
-                } else {
-                    let n = mix.taps;
-                    let mut texels = Vec::with_capacity(4 * n as usize);
-                    for k in 0..n {
-                        let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
-                        texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (b, w / n as f32)));
-                    }
-                    shade_blend(&texels, p, wo, self.lights, self.reading, visible)
-                };
-        }
-        let background = if surface_t.is_some() { Vec3::ZERO } else { self.options.background };
-        LevelShade { radiance: radiance + transmittance * background, opacity: 1.0 - transmittance, limited, shadow_limited }
+        out
+    }
+
+    /// The surface hit at ray parameter `t`, shaded with `level` (filtered as `mix`
+    /// says at coarse levels); returns the radiance and the step-limited shadow rays.
+    fn shade_surface(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix) -> (Vec3, u32) {
+        let wo = -ray.d;
+        let l = &self.model.levels[level];
+        let mut shadow_limited = 0u32;
+        let p = ray.at(t);
+        let volumetric = self.model.meta.volumetric;
+        // Coarse levels of a prefiltered model carry the light's visibility.
+        let shadowed = level == 0 || !self.model.meta.coarse_visibility;
+        let visible = |p: Vec3, s: &LightSample| {
+            let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
+            if volumetric { v * volume_factor(s.wi, wo) } else { v }
+        };
+        let radiance = if level == 0 {
+            let (i, j) = self.texel_at(p, 0);
+            shade(&l.texel_brdf(i, j), p, wo, self.lights, self.reading, visible)
+        } else if mix.taps <= 1 {
+            shade_blend(&self.bilinear_texels(p, level), p, wo, self.lights, self.reading, visible)
+        } else {
+            let n = mix.taps;
+            let mut texels = Vec::with_capacity(4 * n as usize);
+            for k in 0..n {
+                let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
+                texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (b, w / n as f32)));
+            }
+            shade_blend(&texels, p, wo, self.lights, self.reading, visible)
+        };
+        (radiance, shadow_limited)
     }
 
     /// One pixel: s×s samples on a regular grid, the levels from the pixel's footprint
