@@ -157,3 +157,29 @@ fn bake_refuses_bad_input_with_a_clear_error() {
     }
     assert!(!out.exists());
 }
+
+#[test]
+fn prefilter_rebuilds_the_chain_and_refuses_bad_input() {
+    let mut m = fabric_runtime::hybrid::examples::synthetic_model(32, 3);
+    m.levels.truncate(1);
+    m.meta.fit_error.truncate(1);
+    let model = tmp("level0.hyb");
+    fabric_runtime::hybrid::format::write_file(&m, &model).unwrap();
+    let out = tmp("chain.hyb");
+    let o = fabric().arg("prefilter").arg(&model).arg("--out").arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("coarse levels") && stdout.contains("1x1"), "{stdout}");
+    let chain = fabric_runtime::hybrid::format::read_file(&out).unwrap();
+    assert_eq!(chain.levels.len(), 6);
+    assert_eq!(chain.levels[0], m.levels[0], "level 0 is kept as it is");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
+    assert_eq!(report["prefilter"]["levels"].as_array().map(|a| a.len()), Some(5));
+    for args in [vec!["--prefilter-tolerance", "nan"], vec!["--prefilter-max-lobes", "9"], vec!["--levels", "40"]] {
+        let o = fabric().arg("prefilter").arg(&model).arg("--out").arg(tmp("never.hyb")).args(&args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && !stderr.contains("panicked") && stderr.contains("error"), "{args:?}: {stderr}");
+    }
+    let o = fabric().arg("prefilter").arg(tmp("missing.hyb")).arg("--out").arg(tmp("never.hyb")).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("missing.hyb"));
+}

@@ -70,6 +70,13 @@ pub struct LevelStats {
     pub flyaway_alpha: Range,
     pub flyaway_bytes: u64,
     pub fit_error: Option<f32>,
+    /// "WxH".
+    pub resolution: String,
+    /// Lobes per texel, mean and most (= lobes_per_texel's).
+    pub mean_lobes: f64,
+    pub max_lobes: u32,
+    /// Surface and flyaway bytes of the level.
+    pub bytes: u64,
 }
 
 /// What `fabric inspect` prints about a model.
@@ -88,6 +95,7 @@ pub struct ModelStats {
     pub reading: &'static str,
     pub fitted_with_shadowing: bool,
     pub volumetric: bool,
+    pub coarse_visibility: bool,
     pub source_bbox: [f32; 6],
     pub source_dims: [u32; 3],
     pub seed: u64,
@@ -168,6 +176,10 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.flyaway_alpha = alpha.range();
             st.flyaway_bytes = f.byte_size();
         }
+        st.resolution = format!("{}x{}", st.width, st.height);
+        st.mean_lobes = st.lobes_per_texel.mean;
+        st.max_lobes = st.lobes_per_texel.max as u32;
+        st.bytes = st.surface_bytes + st.flyaway_bytes;
         levels.push(st);
     }
     let payload_bytes = height_bytes + levels.iter().map(|l| l.surface_bytes + l.flyaway_bytes).sum::<u64>();
@@ -185,6 +197,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         reading: m.meta.reading.name(),
         fitted_with_shadowing: m.meta.fitted_with_shadowing,
         volumetric: m.meta.volumetric,
+        coarse_visibility: m.meta.coarse_visibility,
         source_bbox: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
         source_dims: m.meta.source_dims,
         seed: m.meta.seed,
