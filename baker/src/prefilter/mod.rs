@@ -2,12 +2,13 @@
 //! coarser level down to 1×1 — per-texel framed lobes fitted to their level-0
 //! footprint ([`lobe_fit`]), and flyaway voxels merged with coverage α ([`flyaways`]).
 //! No renderings: the fit works on BRDF evaluations over a fixed set of direction
-//! pairs ([`pairs`]), each level-0 texel weighted by what a distant pixel sees of it —
-//! its visible projected area toward ω_o and, for models shaded with shadows, the
-//! light's visibility toward ω_i, both from height-field rays ([`TargetAcc`]); the
-//! coarse levels then carry the light's visibility and are shaded without shadow rays
-//! (MODEL flag bit 2, format 1.2). The height field is not filtered; every level
-//! marches level 0's.
+//! pairs ([`pairs`]), the target being the plain mean of the footprint's level-0
+//! responses. Two measured options weight each level-0 texel by what a distant pixel
+//! sees of it ([`TargetAcc`], height-field rays): `masking` (its visible projected area
+//! toward ω_o) and `light_visibility` (the light's visibility toward ω_i, after which
+//! coarse levels are shaded without shadow rays: MODEL flag bit 2, format 1.2); both
+//! are off by default (baker/PREFILTER_MEASUREMENTS.md). The height field is not
+//! filtered; every level marches level 0's.
 //!
 //! Texel (i, j) of level ℓ covers level-0 texels [i·2^ℓ, (i+1)·2^ℓ) × [j·2^ℓ, (j+1)·2^ℓ)
 //! clipped to the tile (runtime/HYBRID_FORMAT.md §"Levels"); its target is the mean
