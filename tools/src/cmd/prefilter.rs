@@ -29,6 +29,10 @@ pub struct PrefilterArgs {
     /// (baker/PREFILTER_MEASUREMENTS.md: helps grazing views of twill, hurts bumpy models).
     #[arg(long)]
     pub masking: bool,
+    /// A coarse flyaway voxel's α: what it hides seen from above ("projected"), or the
+    /// mean coverage of its voxel positions ("volume").
+    #[arg(long, default_value = "projected", value_parser = ["projected", "volume"])]
+    pub coverage: String,
     /// Fold the light's height-field visibility into the coarse BRDFs and shade coarse
     /// levels without shadow rays (format 1.2, MODEL flag bit 2).
     #[arg(long)]
@@ -46,7 +50,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, light_visibility: self.light_visibility, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, seed, ..Default::default() })
     }
 }
 
