@@ -92,8 +92,7 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage) -> R
         }
     }
     let (lw, lh) = level_dims(w0, h0, level);
-    let span = 1u32 << level;
-    let extent = |c: u32, n: u32| ((c + 1) * span).min(n).saturating_sub(c * span).max(1);
+    let extent = |c: u32, n: u32| super::extent(c, level, n).max(1);
     let base: Vec<ClothParams> = (0..f0.table.headers.len()).map(|k| f0.table.brdf_in_frame(k, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)).params).collect();
     let mut table = BrdfTable::new();
     let mut entries: BTreeMap<(u32, u32), u32> = BTreeMap::new();

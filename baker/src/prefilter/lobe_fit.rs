@@ -200,17 +200,16 @@ struct GroupCache {
     factor: Vec<f32>,
 }
 
-/// `scale`: the pairs' weights (the square roots of).
-fn cache(m: &GroupMoments, eta: f32, a: f32, pairs: &[Pair], scale: &[f32]) -> GroupCache {
+fn cache(m: &GroupMoments, eta: f32, a: f32, pairs: &[Pair]) -> GroupCache {
     let f = cloth_frame(m.n, m.t);
     let mut c = GroupCache { theta_sum: Vec::with_capacity(pairs.len()), phi_sum: Vec::with_capacity(pairs.len()), factor: Vec::with_capacity(pairs.len()) };
-    for (&(wi, wo), s) in pairs.iter().zip(scale) {
+    for &(wi, wo) in pairs {
         let ai = cloth_angles(&f, wi);
         let ao = cloth_angles(&f, wo);
         c.theta_sum.push(ai.theta + ao.theta);
         c.phi_sum.push(ai.phi + ao.phi);
         let cos_i = f.n.dot(wi).max(0.0);
-        c.factor.push(s * cloth_fresnel(eta, cloth_fresnel_cos(&ai, &ao)) * cloth_shadowing(ai.cos_phi, a) * cos_i);
+        c.factor.push(cloth_fresnel(eta, cloth_fresnel_cos(&ai, &ao)) * cloth_shadowing(ai.cos_phi, a) * cos_i);
     }
     c
 }
@@ -299,7 +298,6 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
     let mean = |f: &dyn Fn(&Candidate) -> f32| if fp.candidates.is_empty() { None } else { Some(fp.candidates.iter().map(|c| c.weight.max(1e-12) * f(c)).sum::<f32>() / wsum) };
     let eta = mean(&|c| c.eta).unwrap_or(1.5).clamp(1.0, fabric_runtime::brdf::ETA_MAX);
     let a = mean(&|c| c.a).unwrap_or(0.0).clamp(0.0, fabric_runtime::brdf::A_MAX);
-    let scale = vec![1.0f32; fp.target.len()];
     let target = fp.target;
     let mut target2 = [0f64; 3];
     for t in target {
@@ -339,8 +337,8 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
             let members: Vec<&Candidate> = fp.candidates.iter().zip(&assign).filter(|(_, a)| **a == k).map(|(c, _)| c).collect();
             moments(&members, kd_n)
         }));
-        let caches: Vec<GroupCache> = groups.iter().map(|m| cache(m, eta, a, pairs, &scale)).collect();
-        let diffuse: Vec<f32> = pairs.iter().zip(&scale).map(|((wi, _), s)| s * groups[0].n.dot(*wi).max(0.0)).collect();
+        let caches: Vec<GroupCache> = groups.iter().map(|m| cache(m, eta, a, pairs)).collect();
+        let diffuse: Vec<f32> = pairs.iter().map(|(wi, _)| groups[0].n.dot(*wi).max(0.0)).collect();
         let start: Vec<(f32, f32)> = groups.iter().map(|m| (m.beta, m.gamma)).collect();
         let mut widths = start.clone();
         let mut sol = solve(&caches, &widths, &diffuse, target, s.reading, target2);

@@ -31,6 +31,7 @@ use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
 use fabric_runtime::cpu::shading::texel_response;
 use fabric_runtime::hybrid::TexelBrdf;
+use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
 
 use crate::progress::{Progress, stage};
@@ -121,7 +122,7 @@ fn level_bytes(l: &Level) -> u64 {
 }
 
 /// Level-0 texels under texel (i, j) of level ℓ, along one axis of `n` texels.
-fn extent(c: u32, level: usize, n: u32) -> u32 {
+pub(crate) fn extent(c: u32, level: usize, n: u32) -> u32 {
     let span = 1u32 << level;
     ((c + 1) * span).min(n).saturating_sub(c * span)
 }
@@ -321,9 +322,3 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
 
 /// Step budget of the prefilter's visibility rays.
 const VISIBILITY_STEPS: u32 = 4096;
-
-/// Rec. 709 luminance.
-fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
-

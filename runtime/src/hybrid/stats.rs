@@ -106,7 +106,8 @@ pub struct ModelStats {
     pub payload_bytes: u64,
 }
 
-fn luminance(v: glam::Vec3) -> f32 {
+/// Rec. 709 luminance of linear RGB.
+pub fn luminance(v: glam::Vec3) -> f32 {
     0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z
 }
 
