@@ -120,6 +120,23 @@ impl HeightTracer {
         tracer
     }
 
+    /// The depth samples (world units below the top plane, texel centres, x fastest):
+    /// what the GPU layout uploads (`hybrid::gpu_layout`).
+    pub fn samples(&self) -> &[f32] {
+        &self.samples
+    }
+
+    /// The min-depth quadtree, leaves first: per level its (width, height) in cells and
+    /// the cells' bounds, x fastest.
+    pub fn quadtree(&self) -> impl Iterator<Item = ([i32; 2], &[f32])> {
+        self.levels.iter().map(|l| (l.dims, l.min_depth.as_slice()))
+    }
+
+    /// Leaf-space shift: 1 on a clamped tile, 0 on a periodic one.
+    pub fn leaf_offset(&self) -> i32 {
+        self.offset
+    }
+
     /// Depth sample (i, j), wrapped (periodic) or clamped to the edge.
     #[inline]
     fn sample(&self, i: i32, j: i32) -> f32 {

@@ -28,7 +28,7 @@ pub mod shading;
 
 use glam::Vec3;
 
-pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats};
+pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats, validate_render};
 
 use crate::hybrid::ModelError;
 use crate::scene::{CameraError, LightError};

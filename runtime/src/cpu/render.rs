@@ -113,30 +113,7 @@ pub struct PixelTrace {
 impl<'a> Scene<'a> {
     /// Validates everything and builds the accelerators.
     pub fn new(model: &'a HybridModel, camera: &'a Camera, lights: &'a [Light], options: CpuRenderOptions) -> Result<Scene<'a>, CpuRenderError> {
-        model.validate()?;
-        camera.validate()?;
-        for light in lights {
-            light.validate()?;
-        }
-        match options.level {
-            LevelChoice::Fixed(level) if level as usize >= model.levels.len() => return Err(CpuRenderError::Level { level, count: model.levels.len() }),
-            LevelChoice::Auto { bias } if !bias.is_finite() => return Err(CpuRenderError::Options(format!("level bias {bias} is not finite"))),
-            _ => {}
-        }
-        if options.supersampling == 0 || options.supersampling > 16 {
-            return Err(CpuRenderError::Options(format!("supersampling {} must be in 1..=16", options.supersampling)));
-        }
-        if options.max_steps == 0 || options.max_flyaway_columns == 0 {
-            return Err(CpuRenderError::Options("max_steps and max_flyaway_columns must be positive".into()));
-        }
-        if !options.background.is_finite() {
-            return Err(CpuRenderError::Options(format!("background {} is not finite", options.background)));
-        }
-        let shadows = match options.shadows {
-            ShadowMode::FromModel => model.meta.fitted_with_shadowing,
-            ShadowMode::On => true,
-            ShadowMode::Off => false,
-        };
+        let shadows = validate_render(model, camera, lights, &options)?;
         let grids = (0..model.levels.len()).map(|l| FlyawayGrid::new(model, l, options.periodic)).collect();
         Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, options })
     }
@@ -407,6 +384,35 @@ impl<'a> Scene<'a> {
         acc.flyaway_opacity /= n;
         acc
     }
+}
+
+/// Checks a render's inputs (the same for the CPU and the GPU renderer) and says
+/// whether the lights are shadowed (the options, or the model's fit).
+pub fn validate_render(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<bool, CpuRenderError> {
+    model.validate()?;
+    camera.validate()?;
+    for light in lights {
+        light.validate()?;
+    }
+    match options.level {
+        LevelChoice::Fixed(level) if level as usize >= model.levels.len() => return Err(CpuRenderError::Level { level, count: model.levels.len() }),
+        LevelChoice::Auto { bias } | LevelChoice::Nearest { bias } if !bias.is_finite() => return Err(CpuRenderError::Options(format!("level bias {bias} is not finite"))),
+        _ => {}
+    }
+    if options.supersampling == 0 || options.supersampling > 16 {
+        return Err(CpuRenderError::Options(format!("supersampling {} must be in 1..=16", options.supersampling)));
+    }
+    if options.max_steps == 0 || options.max_flyaway_columns == 0 {
+        return Err(CpuRenderError::Options("max_steps and max_flyaway_columns must be positive".into()));
+    }
+    if !options.background.is_finite() {
+        return Err(CpuRenderError::Options(format!("background {} is not finite", options.background)));
+    }
+    Ok(match options.shadows {
+        ShadowMode::FromModel => model.meta.fitted_with_shadowing,
+        ShadowMode::On => true,
+        ShadowMode::Off => false,
+    })
 }
 
 /// Renders `model` seen by `camera` under `lights`: the CPU reference of the GPU

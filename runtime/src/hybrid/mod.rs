@@ -6,6 +6,7 @@
 //! - [`flyaway`]: the flyaway volume as per-texel linked lists;
 //! - [`packing`]: f16 / unorm16 / octahedral / tangent-angle packings and their errors;
 //! - [`format`]: the `.hyb` file (runtime/HYBRID_FORMAT.md), reader and writer;
+//! - [`gpu_layout`]: the model as plain-data arrays for the GPU (std430), and a frame's parameters;
 //! - [`stats`]: what `fabric inspect model.hyb` prints;
 //! - [`examples`]: hand-built models with known answers, for tests.
 //!
@@ -28,6 +29,7 @@ pub mod error;
 pub mod examples;
 pub mod flyaway;
 pub mod format;
+pub mod gpu_layout;
 pub mod lobe;
 pub mod model;
 pub mod packing;

@@ -1,0 +1,206 @@
+//! The GPU renderer of hybrid models on a tile seen by a camera: `shaders/hybrid.comp`,
+//! the GLSL twin of the CPU renderer ([`crate::cpu`]), one compute invocation per pixel.
+//!
+//! Upload: the model's arrays ([`GpuModel`]) go into device-local storage buffers as
+//! they are; each must fit one storage-buffer binding (lavapipe: 128 MiB), else the
+//! upload fails naming the array. Variants: whether flyaways are marched, whether shadow
+//! rays are cast and how many lights are looped over are specialization constants
+//! ([`Variant`]), so a scene pays only for what it uses; pipelines are built per variant
+//! on first use and kept.
+//!
+//! Options and validation are the CPU renderer's ([`CpuRenderOptions`],
+//! [`validate_render`]); the image and [`RenderStats`] come back as the CPU's do.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use glam::Vec3;
+
+use crate::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, validate_render};
+use crate::hybrid::HybridModel;
+use crate::hybrid::gpu_layout::{GPU_MAX_LIGHTS, GpuCamera, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
+use crate::image::Image;
+use crate::scene::{Camera, Light};
+use crate::vk::{BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
+
+/// Why a GPU render cannot run.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuRenderError {
+    /// The model, camera, lights or options are invalid (the CPU renderer's checks).
+    #[error(transparent)]
+    Input(#[from] CpuRenderError),
+    #[error(transparent)]
+    Vulkan(#[from] VkError),
+    #[error("{count} lights; the GPU renderer draws at most {GPU_MAX_LIGHTS} per frame")]
+    TooManyLights { count: usize },
+    #[error("the model was uploaded for a {} tile but the render asks for a {} one", if *.uploaded { "periodic" } else { "clamped" }, if *.uploaded { "clamped" } else { "periodic" })]
+    Periodic { uploaded: bool },
+    #[error("{count} pixel(s) came out NaN or infinite, the first at ({x}, {y}): a bug in the renderer, please report it")]
+    NonFinite { count: u32, x: u32, y: u32 },
+}
+
+/// What the shader is specialized for (constant ids 0, 1, 2 of
+/// `shaders/common/render_params.glsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    /// March the flyaway lists (off when the model has none).
+    pub flyaways: bool,
+    /// Cast height-field shadow rays.
+    pub shadows: bool,
+    /// Lights looped over.
+    pub lights: u32,
+}
+
+/// A model in GPU buffers, laid out for a clamped or a periodic tile.
+pub struct GpuHybridModel {
+    buffers: Vec<Buffer>,
+    pub periodic: bool,
+    pub has_flyaways: bool,
+    pub levels: usize,
+    /// Bytes uploaded.
+    pub bytes: u64,
+    /// The model itself, for validation of each render.
+    model: HybridModel,
+}
+
+/// One rendered frame.
+pub struct HybridFrame {
+    pub image: Image,
+    pub stats: RenderStats,
+    /// GPU time of the dispatch (timestamps), milliseconds.
+    pub gpu_ms: f64,
+    pub variant: Variant,
+}
+
+/// The compute pass and its pipelines.
+pub struct HybridPass {
+    device: Arc<Device>,
+    set_layout: DescriptorSetLayout,
+    layout: Arc<PipelineLayout>,
+    module: ShaderModule,
+    pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
+}
+
+/// Statistics words written by the shader (STAT_* of hybrid.comp).
+const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
+
+impl HybridPass {
+    pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
+        let module = ShaderModule::embedded(device, "hybrid.comp")?;
+        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 10], vk::ShaderStageFlags::COMPUTE)?;
+        let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
+        Ok(HybridPass { device: device.clone(), set_layout, layout, module, pipelines: Mutex::new(HashMap::new()) })
+    }
+
+    pub fn device(&self) -> &Arc<Device> {
+        &self.device
+    }
+
+    /// Uploads `model` for a clamped or `periodic` tile.
+    pub fn upload(&self, model: &HybridModel, periodic: bool) -> Result<GpuHybridModel, GpuRenderError> {
+        let layout = GpuModel::new(model, periodic).map_err(CpuRenderError::Model)?;
+        let mut buffers = Vec::new();
+        let mut bytes = 0;
+        for (name, data) in layout.arrays() {
+            bytes += data.len() as u64;
+            buffers.push(Buffer::with_data(&self.device, name, &data, vk::BufferUsageFlags::STORAGE_BUFFER)?);
+        }
+        Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), levels: model.levels.len(), bytes, model: model.clone() })
+    }
+
+    /// The variant a render of `model` with `options` under `lights` uses.
+    pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool) -> Variant {
+        Variant { flyaways: model.has_flyaways, shadows, lights: lights as u32 }
+    }
+
+    fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
+        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = cache.get(&v) {
+            return Ok(p.clone());
+        }
+        let spec = Specialization::new().bool(0, v.flyaways).bool(1, v.shadows).u32(2, v.lights);
+        let name = format!("hybrid (flyaways {}, shadows {}, {} lights)", v.flyaways, v.shadows, v.lights);
+        let p = Arc::new(Pipeline::compute(&self.device, &name, &self.module, &self.layout, &spec)?);
+        cache.insert(v, p.clone());
+        Ok(p)
+    }
+
+    /// Renders `model` seen by `camera` under `lights` with `options` (the CPU
+    /// renderer's; `options.periodic` must match the upload). `variant` overrides the
+    /// specialization (tests and benchmarks of the skips); None: what the scene needs.
+    pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+        let shadows = validate_render(&model.model, camera, lights, options)?;
+        if lights.len() > GPU_MAX_LIGHTS {
+            return Err(GpuRenderError::TooManyLights { count: lights.len() });
+        }
+        if options.periodic != model.periodic {
+            return Err(GpuRenderError::Periodic { uploaded: model.periodic });
+        }
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows));
+        let pipeline = self.pipeline(variant)?;
+        let (level_mode, fixed_level, level_bias) = match options.level {
+            LevelChoice::Auto { bias } => (LEVEL_AUTO, 0, bias),
+            LevelChoice::Nearest { bias } => (LEVEL_NEAREST, 0, bias),
+            LevelChoice::Fixed(l) => (LEVEL_FIXED, l, 0.0),
+        };
+        let mut gpu_lights = [GpuLight::default(); GPU_MAX_LIGHTS];
+        for (g, l) in gpu_lights.iter_mut().zip(lights) {
+            *g = GpuLight::new(l);
+        }
+        let params = GpuRenderParams {
+            camera: GpuCamera::new(camera),
+            background: options.background.extend(0.0).to_array(),
+            light_count: lights.len() as u32,
+            max_steps: options.max_steps,
+            max_flyaway_columns: options.max_flyaway_columns,
+            supersampling: options.supersampling,
+            level_mode,
+            fixed_level,
+            level_bias,
+            pad: 0,
+            lights: gpu_lights,
+        };
+        let dev = &self.device;
+        let param_buf = Buffer::new(dev, "hybrid params", size_of::<GpuRenderParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
+        param_buf.write_mapped(bytemuck::bytes_of(&params))?;
+        let (w, h) = (camera.width, camera.height);
+        // Device-local: on a discrete GPU the shader must not write across the bus.
+        let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;
+        let stats = Buffer::new(dev, "hybrid stats", (STAT_WORDS * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
+        stats.write_mapped(&[0u8; STAT_WORDS * 4])?;
+        let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats)]);
+        let set = DescriptorSet::new(dev, &self.set_layout, &resources)?;
+        let timestamps = Timestamps::new(dev, 2)?;
+        dev.record_and_run("hybrid pass", |rec| {
+            rec.reset_timestamps(&timestamps);
+            rec.timestamp(&timestamps, 0);
+            rec.bind_pipeline(&pipeline);
+            rec.bind_sets(&pipeline, &[&set]);
+            rec.dispatch(w.div_ceil(8), h.div_ceil(8), 1);
+            rec.timestamp(&timestamps, 1);
+            rec.memory_barrier();
+        })?;
+        let gpu_ms = timestamps.elapsed_ms(0, 1)?;
+        let raw: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&pixels.download()?);
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(stats.mapped().ok_or_else(|| VkError::Invalid("hybrid stats are not host-visible".into()))?);
+        let non_finite = words[5];
+        if non_finite > 0 {
+            let k = raw.iter().position(|p| p[3] == 0.0).unwrap_or(0) as u32;
+            return Err(GpuRenderError::NonFinite { count: non_finite, x: k % w, y: k / w });
+        }
+        let image = Image { width: w, height: h, pixels: raw.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect() };
+        let levels = model.levels;
+        let stats = RenderStats {
+            pixels: w as u64 * h as u64,
+            tile_pixels: words[0] as u64,
+            surface_pixels: words[1] as u64,
+            flyaway_pixels: words[2] as u64,
+            level_pixels: words[8..8 + levels].iter().map(|&v| v as u64).collect(),
+            step_limited_pixels: words[3] as u64,
+            step_limited_shadow_rays: words[4] as u64,
+            camera_steps: words[6] as u64 | (words[7] as u64) << 32,
+        };
+        Ok(HybridFrame { image, stats, gpu_ms, variant })
+    }
+}

@@ -1,0 +1,319 @@
+//! The hybrid model as the GPU sees it: plain-data arrays in std430, uploaded as they
+//! are (runtime/HYBRID_FORMAT.md §"Records" for the packed records; DESIGN.md §7).
+//!
+//! GLSL twin: `shaders/common/model.glsl` declares the same structs with the same
+//! members in the same order; `runtime/tests/gpu_layout.rs` reads the member offsets
+//! out of the compiled SPIR-V and compares them with these (`offset_of!`).
+//!
+//! | binding | array                | element                                   |
+//! |---------|----------------------|-------------------------------------------|
+//! | 0       | [`GpuModelHeader`]    | tile, flags, per level where its data is  |
+//! | 1       | `floats`             | height samples, then the min-depth quadtree |
+//! | 2       | `headers`            | [`BrdfHeader`] of every table, concatenated |
+//! | 3       | `lobes`              | [`PackedLobe`] of every table              |
+//! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
+//! | 5       | `fly_heads`          | list heads (level-local node indices)      |
+//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`) |
+//!
+//! Indices stored in the records stay as the file has them (local to their table or
+//! level); a level's `*_base` is added when they are followed. The height samples and
+//! the quadtree are the CPU renderer's own ([`HeightTracer`]): both renderers march the
+//! same numbers.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::flyaway::FlyawayNode;
+use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe};
+use super::model::{HybridModel, Surface};
+use super::ModelError;
+use crate::cpu::heightfield::HeightTracer;
+
+/// Most levels a model has (a 32768² level 0: 16).
+pub const GPU_MAX_LEVELS: usize = 16;
+/// Most quadtree levels (32769 leaves per axis on a clamped 32768² tile: 17).
+pub const GPU_MAX_QUAD_LEVELS: usize = 18;
+
+/// [`GpuModelHeader::flags`]: the tile repeats in x and y.
+pub const GPU_FLAG_PERIODIC: u32 = 1;
+/// Surface hits carry the volumetric factor ([`crate::cpu::shading::volume_factor`]).
+pub const GPU_FLAG_VOLUMETRIC: u32 = 2;
+/// Coarse levels carry the light's visibility (no shadow rays at levels ≥ 1).
+pub const GPU_FLAG_COARSE_VISIBILITY: u32 = 4;
+/// The BRDFs use the width reading of Eqs. 2–3 ([`crate::brdf::BrdfReading::Width`]).
+pub const GPU_FLAG_READING_WIDTH: u32 = 8;
+
+/// [`GpuLevel::surface`]: per texel a frame and a cluster index.
+pub const GPU_SURFACE_CLUSTERED: u32 = 0;
+/// [`GpuLevel::surface`]: per texel a header whose lobes have their own frames.
+pub const GPU_SURFACE_PER_TEXEL: u32 = 1;
+
+/// Where one level's data sits in the arrays. 64 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLevel {
+    /// Texels in x and y.
+    pub dims: [u32; 2],
+    /// [`GPU_SURFACE_CLUSTERED`] or [`GPU_SURFACE_PER_TEXEL`].
+    pub surface: u32,
+    /// First clustered texel of this level (clustered levels).
+    pub texel_base: u32,
+    /// First header of the surface table (clusters, or one per texel).
+    pub header_base: u32,
+    /// First lobe of the surface table.
+    pub lobe_base: u32,
+    /// Flyaway nodes of this level (0: none; the march is skipped).
+    pub fly_nodes: u32,
+    pub fly_head_base: u32,
+    pub fly_node_base: u32,
+    pub fly_header_base: u32,
+    pub fly_lobe_base: u32,
+    /// Voxel depth s_ℓ (world).
+    pub voxel_depth: f32,
+    /// Edge in the opacity exponent, (Δx_ℓ·Δy_ℓ·s_ℓ)^(1/3) (`cpu::flyaways::FlyawayGrid`).
+    pub fly_edge: f32,
+    pub pad: [u32; 3],
+}
+
+/// One level of the min-depth quadtree. 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuQuadLevel {
+    /// Cells in x and y.
+    pub dims: [i32; 2],
+    /// First cell in `floats`.
+    pub offset: u32,
+    pub pad: u32,
+}
+
+/// The model's header: the tile, the flags, and where each level is. 1376 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuModelHeader {
+    pub origin: [f32; 2],
+    pub size: [f32; 2],
+    /// Level-0 texel size (world).
+    pub texel: [f32; 2],
+    /// Level-0 texels (= height samples) per axis.
+    pub n: [i32; 2],
+    pub top_z: f32,
+    pub height_scale: f32,
+    pub level_count: u32,
+    pub quad_count: u32,
+    /// Leaf-space shift of the height-field march: 1 clamped, 0 periodic.
+    pub leaf_offset: i32,
+    /// `GPU_FLAG_*`.
+    pub flags: u32,
+    pub pad: [u32; 2],
+    pub levels: [GpuLevel; GPU_MAX_LEVELS],
+    pub quad: [GpuQuadLevel; GPU_MAX_QUAD_LEVELS],
+}
+
+const _: () = assert!(size_of::<GpuLevel>() == 64);
+const _: () = assert!(size_of::<GpuQuadLevel>() == 16);
+const _: () = assert!(size_of::<GpuModelHeader>() == 1376);
+
+/// A model laid out for the GPU: every array as it is uploaded.
+#[derive(Clone, Debug)]
+pub struct GpuModel {
+    pub header: GpuModelHeader,
+    pub floats: Vec<f32>,
+    pub headers: Vec<BrdfHeader>,
+    pub lobes: Vec<PackedLobe>,
+    pub texels: Vec<ClusteredTexel>,
+    pub fly_heads: Vec<u32>,
+    pub fly_nodes: Vec<FlyawayNode>,
+}
+
+impl GpuModel {
+    /// Lays out a (validated) model for a clamped or a `periodic` tile.
+    pub fn new(model: &HybridModel, periodic: bool) -> Result<GpuModel, ModelError> {
+        model.validate()?;
+        if model.levels.len() > GPU_MAX_LEVELS {
+            return Err(ModelError::Meta(format!("{} levels; the GPU layout holds {GPU_MAX_LEVELS}", model.levels.len())));
+        }
+        let tracer = HeightTracer::new(model, periodic);
+        let mut floats: Vec<f32> = tracer.samples().to_vec();
+        let mut quad = [GpuQuadLevel::default(); GPU_MAX_QUAD_LEVELS];
+        let mut quad_count = 0;
+        for (k, (dims, cells)) in tracer.quadtree().enumerate() {
+            if k >= GPU_MAX_QUAD_LEVELS {
+                return Err(ModelError::Meta(format!("the height field's quadtree has more than {GPU_MAX_QUAD_LEVELS} levels")));
+            }
+            quad[k] = GpuQuadLevel { dims, offset: floats.len() as u32, pad: 0 };
+            floats.extend_from_slice(cells);
+            quad_count = k + 1;
+        }
+        let t = &model.tile;
+        let texel = model.texel_size();
+        let m = &model.meta;
+        let flags = if periodic { GPU_FLAG_PERIODIC } else { 0 }
+            | if m.volumetric { GPU_FLAG_VOLUMETRIC } else { 0 }
+            | if m.coarse_visibility { GPU_FLAG_COARSE_VISIBILITY } else { 0 }
+            | if m.reading == crate::brdf::BrdfReading::Width { GPU_FLAG_READING_WIDTH } else { 0 };
+        let mut out = GpuModel {
+            header: GpuModelHeader {
+                origin: t.origin.to_array(),
+                size: t.size.to_array(),
+                texel: texel.to_array(),
+                n: [model.width() as i32, model.height_px() as i32],
+                top_z: t.top_z,
+                height_scale: t.height_scale,
+                level_count: model.levels.len() as u32,
+                quad_count: quad_count as u32,
+                leaf_offset: tracer.leaf_offset(),
+                flags,
+                pad: [0; 2],
+                levels: [GpuLevel::default(); GPU_MAX_LEVELS],
+                quad,
+            },
+            floats,
+            headers: Vec::new(),
+            lobes: Vec::new(),
+            texels: Vec::new(),
+            fly_heads: Vec::new(),
+            fly_nodes: Vec::new(),
+        };
+        for (k, l) in model.levels.iter().enumerate() {
+            let mut g = GpuLevel { dims: [l.width, l.height], header_base: out.headers.len() as u32, lobe_base: out.lobes.len() as u32, ..Default::default() };
+            match &l.surface {
+                Surface::Clustered { texels, table } => {
+                    g.surface = GPU_SURFACE_CLUSTERED;
+                    g.texel_base = out.texels.len() as u32;
+                    out.texels.extend_from_slice(texels);
+                    out.headers.extend_from_slice(&table.headers);
+                    out.lobes.extend_from_slice(&table.lobes);
+                }
+                Surface::PerTexel(table) => {
+                    g.surface = GPU_SURFACE_PER_TEXEL;
+                    out.headers.extend_from_slice(&table.headers);
+                    out.lobes.extend_from_slice(&table.lobes);
+                }
+            }
+            let span = (1u64 << k) as f32;
+            g.voxel_depth = model.voxel_depth(k);
+            g.fly_edge = (texel.x * texel.y * (span * span) * g.voxel_depth).cbrt();
+            if let Some(f) = l.flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+                g.fly_nodes = f.nodes.len() as u32;
+                g.fly_head_base = out.fly_heads.len() as u32;
+                g.fly_node_base = out.fly_nodes.len() as u32;
+                g.fly_header_base = out.headers.len() as u32;
+                g.fly_lobe_base = out.lobes.len() as u32;
+                out.fly_heads.extend_from_slice(&f.heads);
+                out.fly_nodes.extend_from_slice(&f.nodes);
+                out.headers.extend_from_slice(&f.table.headers);
+                out.lobes.extend_from_slice(&f.table.lobes);
+            }
+            out.header.levels[k] = g;
+        }
+        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len())] {
+            if len >= u32::MAX as usize {
+                return Err(ModelError::Meta(format!("{len} {what}: more than the GPU layout's 32-bit indices reach")));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The arrays as (name, bytes), in binding order 0..=6. Empty arrays are one zero
+    /// element long (Vulkan buffers cannot be empty; nothing indexes them then).
+    pub fn arrays(&self) -> [(&'static str, Vec<u8>); 7] {
+        fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
+            let mut b = bytemuck::cast_slice(v).to_vec();
+            if b.is_empty() {
+                b.resize(min, 0);
+            }
+            b
+        }
+        [
+            ("model header", bytemuck::bytes_of(&self.header).to_vec()),
+            ("model floats", bytes(&self.floats, 4)),
+            ("BRDF headers", bytes(&self.headers, 16)),
+            ("BRDF lobes", bytes(&self.lobes, 16)),
+            ("clustered texels", bytes(&self.texels, 8)),
+            ("flyaway heads", bytes(&self.fly_heads, 4)),
+            ("flyaway nodes", bytes(&self.fly_nodes, 16)),
+        ]
+    }
+
+    /// Total bytes uploaded.
+    pub fn byte_size(&self) -> u64 {
+        self.arrays().iter().map(|(_, b)| b.len() as u64).sum()
+    }
+}
+
+/// Most lights one frame is drawn with.
+pub const GPU_MAX_LIGHTS: usize = 8;
+
+/// [`GpuRenderParams::level_mode`].
+pub const LEVEL_AUTO: u32 = 0;
+pub const LEVEL_NEAREST: u32 = 1;
+pub const LEVEL_FIXED: u32 = 2;
+
+/// `Camera::ray`'s inputs, its frame precomputed. 80 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCamera {
+    /// w: 1 perspective, 0 orthographic.
+    pub origin: [f32; 4],
+    pub forward: [f32; 4],
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+    pub half_extents: [f32; 2],
+    pub size: [u32; 2],
+}
+
+impl GpuCamera {
+    pub fn new(c: &crate::scene::Camera) -> GpuCamera {
+        let f = c.frame();
+        let w = match c.projection {
+            crate::scene::Projection::Perspective { .. } => 1.0,
+            crate::scene::Projection::Orthographic { .. } => 0.0,
+        };
+        GpuCamera {
+            origin: c.origin.extend(w).to_array(),
+            forward: f.forward.extend(0.0).to_array(),
+            right: f.right.extend(0.0).to_array(),
+            up: f.up.extend(0.0).to_array(),
+            half_extents: c.half_extents().to_array(),
+            size: [c.width, c.height],
+        }
+    }
+}
+
+/// One light (`shaders/common/lights.glsl`): `vec.w` 0 directional (xyz toward the
+/// light), 1 point (xyz its position). 32 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    pub vec: [f32; 4],
+    pub power: [f32; 4],
+}
+
+impl GpuLight {
+    pub fn new(l: &crate::scene::Light) -> GpuLight {
+        match *l {
+            crate::scene::Light::Directional { dir_to_light, irradiance } => GpuLight { vec: dir_to_light.extend(0.0).to_array(), power: irradiance.extend(0.0).to_array() },
+            crate::scene::Light::Point { position, intensity } => GpuLight { vec: position.extend(1.0).to_array(), power: intensity.extend(0.0).to_array() },
+        }
+    }
+}
+
+/// One frame's camera, lights and options (binding 7). 384 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuRenderParams {
+    pub camera: GpuCamera,
+    pub background: [f32; 4],
+    pub light_count: u32,
+    pub max_steps: u32,
+    pub max_flyaway_columns: u32,
+    pub supersampling: u32,
+    /// `LEVEL_*`.
+    pub level_mode: u32,
+    pub fixed_level: u32,
+    pub level_bias: f32,
+    pub pad: u32,
+    pub lights: [GpuLight; GPU_MAX_LIGHTS],
+}
+
+const _: () = assert!(size_of::<GpuCamera>() == 80);
+const _: () = assert!(size_of::<GpuRenderParams>() == 384);

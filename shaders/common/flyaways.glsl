@@ -1,0 +1,138 @@
+// flyaways.glsl — marching a level's flyaway lists along a ray, front to back,
+// alpha-compositing what it crosses (DESIGN.md §5, §7).
+//
+// Twin: runtime/src/cpu/flyaways.rs (flyaway_opacity, march_flyaways, whose module docs
+// define the columns and the opacity 1 - (1 - alpha)^(l/s)); the shading of a node is
+// the closure the CPU's Scene::march_level_flyaways passes, inlined.
+#ifndef FLYAWAYS_GLSL
+#define FLYAWAYS_GLSL
+
+#include "common/shading.glsl"
+
+const float MIN_TRANSMITTANCE = 1e-4;
+
+struct FlyawayMarch {
+    vec3 radiance;        // premultiplied by the nodes' opacities
+    float transmittance;  // left for what lies behind
+    uint columns;
+    bool limited;         // the column budget ran out
+};
+
+// Opacity of a voxel of coverage alpha crossed over `path` with edge `edge`.
+float flyaway_opacity(float alpha, float path, float edge) {
+    if (isnan(path) || path <= 0.0) {
+        return 0.0;
+    }
+    if (alpha >= 1.0) {
+        return 1.0;
+    }
+    return 1.0 - pow(max(1.0 - alpha, 0.0), path / edge);
+}
+
+// Marches the ray (o, d: unit, heading down) through the lists of `level` over
+// [t_start, t_end], shading each node it crosses at its entry point.
+FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_end, uint max_columns, inout uint shadow_limited) {
+    FlyawayMarch out_ = FlyawayMarch(vec3(0.0), 1.0, 0u, false);
+    if (isnan(t_end) || t_end <= t_start || d.z >= 0.0) {
+        return out_;
+    }
+    GpuLevel l = model.levels[level];
+    ivec2 n0 = model.n;
+    int span = 1 << level;
+    ivec2 dims = ivec2(l.dims);
+    bool periodic = model_periodic();
+    vec2 u0 = (o.xy - model.origin) / model.texel;
+    vec2 du = d.xy / model.texel;
+    vec2 u_start = u0 + du * t_start;
+    ivec2 tile;
+    ivec2 k;
+    for (int axis = 0; axis < 2; ++axis) {
+        float n = float(n0[axis]);
+        int t_ = int(floor(u_start[axis] / n));
+        float local = u_start[axis] - float(t_) * n;
+        if (local <= 0.0 && du[axis] < 0.0) {
+            t_ -= 1;
+            local += n;
+        }
+        int kk = clamp(int(floor(local / float(span))), 0, dims[axis] - 1);
+        if (local == float(kk * span) && du[axis] < 0.0 && kk > 0) {
+            kk -= 1;
+        }
+        tile[axis] = t_;
+        k[axis] = kk;
+    }
+    float t = t_start;
+    while (out_.columns < max_columns) {
+        if (!periodic && (tile.x != 0 || tile.y != 0)) {
+            return out_;
+        }
+        out_.columns += 1u;
+        vec2 exits = vec2(HF_INF);
+        for (int axis = 0; axis < 2; ++axis) {
+            float base = float(tile[axis] * n0[axis]);
+            float lo = base + float(k[axis] * span);
+            float hi = base + float(min((k[axis] + 1) * span, n0[axis]));
+            if (du[axis] > 0.0) {
+                exits[axis] = (hi - u0[axis]) / du[axis];
+            } else if (du[axis] < 0.0) {
+                exits[axis] = (lo - u0[axis]) / du[axis];
+            }
+        }
+        float t_next = max(min(min(exits.x, exits.y), t_end), t);
+        uint column = uint(k.y * dims.x + k.x);
+        float d_in = model.top_z - (o.z + d.z * t);
+        float d_out = model.top_z - (o.z + d.z * t_next);
+        uint node = fly_heads[l.fly_head_base + column];
+        for (uint guard = 0u; node != NO_NODE && guard < l.fly_nodes; ++guard) {
+            uvec4 nd = fly_nodes[l.fly_node_base + node];
+            node = nd.x;
+            float top = float(nd.y & 0xffffu) * l.voxel_depth;
+            float bottom = top + l.voxel_depth;
+            if (bottom <= d_in) {
+                continue;
+            }
+            if (top >= d_out) {
+                break;
+            }
+            float t_in = max(t, (model.top_z - top - o.z) / d.z);
+            float t_out = min(t_next, (model.top_z - bottom - o.z) / d.z);
+            float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), t_out - t_in, l.fly_edge);
+            if (opacity > 0.0) {
+                // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's
+                // closure in Scene::march_level_flyaways).
+                TexelRef b = in_fiber_frame(level, nd.w, octahedral_decode(nd.z), -d);
+                out_.radiance += (out_.transmittance * opacity) * shade(b, o + t_in * d, -d, true, false, shadow_limited);
+                out_.transmittance *= 1.0 - opacity;
+                if (out_.transmittance < MIN_TRANSMITTANCE) {
+                    out_.transmittance = 0.0;
+                    return out_;
+                }
+            }
+        }
+        if (t_next >= t_end) {
+            return out_;
+        }
+        t = t_next;
+        for (int axis = 0; axis < 2; ++axis) {
+            if (exits[axis] <= t_next) {
+                if (du[axis] > 0.0) {
+                    k[axis] += 1;
+                    if (k[axis] >= dims[axis]) {
+                        k[axis] = 0;
+                        tile[axis] += 1;
+                    }
+                } else {
+                    k[axis] -= 1;
+                    if (k[axis] < 0) {
+                        k[axis] = dims[axis] - 1;
+                        tile[axis] -= 1;
+                    }
+                }
+            }
+        }
+    }
+    out_.limited = true;
+    return out_;
+}
+
+#endif // FLYAWAYS_GLSL

@@ -1,0 +1,114 @@
+// level.glsl — which levels of the mip chain shade a pixel, from its footprint where its
+// ray meets the surface (DESIGN.md §7; the rule of LevelChoice in runtime/src/cpu/mod.rs).
+//
+// Twin: runtime/src/cpu/render.rs (LevelMix, linear_levels, MAX_ANISOTROPY,
+// FILTER_OFFSET, Scene::level_mix, Scene::footprint_axes_at). The footprint comes from
+// the rays through the neighbouring pixels, as on the CPU, not from screen-space
+// derivatives: the two renderers choose the same levels.
+#ifndef LEVEL_GLSL
+#define LEVEL_GLSL
+
+#include "common/camera.glsl"
+#include "common/model.glsl"
+
+#define MAX_ANISOTROPY 8u
+const float FILTER_OFFSET = -0.79248125;
+
+// Surface levels lo (weight 1 - weight) and hi (weight); `taps` lookups over `axis`;
+// flyaway levels fly_lo, fly_hi with fly_weight.
+struct LevelMix {
+    uint lo;
+    uint hi;
+    float weight;
+    vec2 axis;
+    uint taps;
+    uint fly_lo;
+    uint fly_hi;
+    float fly_weight;
+};
+
+LevelMix level_single(uint level) {
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, level, level, 0.0);
+}
+
+// Levels floor(lambda) and floor(lambda) + 1 with the weight of the second, clamped.
+void linear_levels(float lambda, uint last, out uint lo, out uint hi, out float w) {
+    lo = 0u;
+    hi = 0u;
+    w = 0.0;
+    if (!(lambda > 0.0)) {
+        return;
+    }
+    float f = floor(lambda);
+    if (f >= float(last)) {
+        lo = last;
+        hi = last;
+        return;
+    }
+    lo = uint(f);
+    hi = lo + 1u;
+    w = lambda - f;
+}
+
+// The steps, in world x-y on the plane at height z, to where the rays through the next
+// pixel right and down meet it; false if one of them misses the plane.
+bool footprint_on_plane(float px, float py, float z, out vec2 p) {
+    vec3 o, d;
+    camera_ray(px, py, o, d);
+    p = vec2(0.0);
+    if (!(d.z < 0.0) || o.z < z) {
+        return false;
+    }
+    p = (o + d * ((z - o.z) / d.z)).xy;
+    return true;
+}
+
+bool footprint_axes_at(float px, float py, float z, out vec2 a, out vec2 b) {
+    vec2 c, r, u;
+    a = vec2(0.0);
+    b = vec2(0.0);
+    if (!footprint_on_plane(px, py, z, c) || !footprint_on_plane(px + 1.0, py, z, r) || !footprint_on_plane(px, py + 1.0, z, u)) {
+        return false;
+    }
+    a = r - c;
+    b = u - c;
+    return true;
+}
+
+// The levels that shade pixel (px, py) when its ray meets the surface at height z.
+LevelMix level_mix(float px, float py, float z) {
+    uint last = model.level_count - 1u;
+    if (params.level_mode == LEVEL_FIXED) {
+        return level_single(min(params.fixed_level, last));
+    }
+    float bias = params.level_bias;
+    vec2 a, b;
+    if (!footprint_axes_at(px, py, z, a, b)) {
+        return level_single(last);
+    }
+    float la = length(a / model.texel);
+    float lb = length(b / model.texel);
+    float major = la >= lb ? la : lb;
+    float minor = la >= lb ? lb : la;
+    vec2 axis = la >= lb ? a : b;
+    if (!(major > 0.0)) {
+        return level_single(0u);
+    }
+    if (isinf(major)) {
+        return level_single(last);
+    }
+    if (params.level_mode == LEVEL_NEAREST) {
+        float lambda = log2(major) + bias;
+        return level_single(min(uint(max(floor(lambda + 0.5), 0.0)), last));
+    }
+    uint taps = uint(clamp(ceil(major / max(minor, 1e-6) - 1e-3), 1.0, float(MAX_ANISOTROPY)));
+    float lambda = log2(major / float(taps)) + FILTER_OFFSET + bias;
+    LevelMix m;
+    linear_levels(lambda, last, m.lo, m.hi, m.weight);
+    m.axis = axis;
+    m.taps = taps;
+    linear_levels(log2(major) + bias, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    return m;
+}
+
+#endif // LEVEL_GLSL

@@ -1,0 +1,178 @@
+// model.glsl — the hybrid model's arrays and the decoding of its BRDF records.
+//
+// Twins: runtime/src/hybrid/gpu_layout.rs (the structs, member for member, and the
+// bindings; a test compares the SPIR-V member offsets with Rust's offset_of!) and
+// runtime/src/hybrid/lobe.rs + model.rs (brdf_in_frame, brdf_framed, texel_brdf).
+//
+// Records (runtime/HYBRID_FORMAT.md "Records"), as 32-bit words:
+//   BrdfHeader     uvec4: x = kd.r | kd.g << 16, y = kd.b | eta << 16,
+//                         z = a | lobe_count << 16 (| reserved << 24), w = lobe_offset
+//   PackedLobe     uvec4: x = normal (oct u | v << 16), y = tangent_angle | k.r << 16,
+//                         z = k.g | k.b << 16, w = beta | gamma << 16
+//   ClusteredTexel uvec2: x = normal, y = tangent_angle | cluster << 16
+//   FlyawayNode    uvec4: x = next, y = depth | alpha << 16, z = tangent (oct), w = param
+// Indices inside records are local to their table or level; add the level's *_base.
+#ifndef MODEL_GLSL
+#define MODEL_GLSL
+
+#include "brdf.glsl"
+#include "common/packing.glsl"
+
+#define GPU_MAX_LEVELS 16
+#define GPU_MAX_QUAD_LEVELS 18
+#define GPU_FLAG_PERIODIC 1u
+#define GPU_FLAG_VOLUMETRIC 2u
+#define GPU_FLAG_COARSE_VISIBILITY 4u
+#define GPU_FLAG_READING_WIDTH 8u
+#define GPU_SURFACE_CLUSTERED 0u
+#define GPU_SURFACE_PER_TEXEL 1u
+#define NO_NODE 0xffffffffu
+
+struct GpuLevel {
+    uvec2 dims;
+    uint surface;
+    uint texel_base;
+    uint header_base;
+    uint lobe_base;
+    uint fly_nodes;
+    uint fly_head_base;
+    uint fly_node_base;
+    uint fly_header_base;
+    uint fly_lobe_base;
+    float voxel_depth;
+    float fly_edge;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+};
+
+struct GpuQuadLevel {
+    ivec2 dims;
+    uint offset;
+    uint pad;
+};
+
+struct GpuModelHeader {
+    vec2 origin;
+    vec2 size;
+    vec2 texel;
+    ivec2 n;
+    float top_z;
+    float height_scale;
+    uint level_count;
+    uint quad_count;
+    int leaf_offset;
+    uint flags;
+    uint pad0;
+    uint pad1;
+    GpuLevel levels[GPU_MAX_LEVELS];
+    GpuQuadLevel quad[GPU_MAX_QUAD_LEVELS];
+};
+
+layout(std430, set = 0, binding = 0) readonly buffer ModelBlock { GpuModelHeader model; };
+layout(std430, set = 0, binding = 1) readonly buffer FloatBlock { float model_floats[]; };
+layout(std430, set = 0, binding = 2) readonly buffer HeaderBlock { uvec4 brdf_headers[]; };
+layout(std430, set = 0, binding = 3) readonly buffer LobeBlock { uvec4 brdf_lobes[]; };
+layout(std430, set = 0, binding = 4) readonly buffer TexelBlock { uvec2 clustered_texels[]; };
+layout(std430, set = 0, binding = 5) readonly buffer HeadBlock { uint fly_heads[]; };
+layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes[]; };
+
+// i mod n in [0, n) for n > 0 (Rust's rem_euclid); GLSL's % is undefined for negative
+// operands, so only non-negative ones reach it.
+int wrap_index(int i, int n) {
+    if (i < 0) {
+        i += n * ((n - 1 - i) / n);
+    }
+    return i % n;
+}
+
+bool model_periodic() {
+    return (model.flags & GPU_FLAG_PERIODIC) != 0u;
+}
+
+uint model_reading() {
+    return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
+}
+
+ClothLobe packed_lobe(uvec4 l) {
+    ClothLobe lobe;
+    lobe.k = vec3(f16_value(l.y >> 16), f16_value(l.z), f16_value(l.z >> 16));
+    lobe.beta = f16_value(l.w);
+    lobe.gamma = f16_value(l.w >> 16);
+    return lobe;
+}
+
+// A texel's BRDF by reference, decoded as it is evaluated (a GPU keeps no 8-lobe
+// arrays in registers): its header (absolute index), where its table's lobes start,
+// and whether each lobe has its own frame (per-texel tables) or all use `frame`
+// (clustered texels; flyaways, in their fiber frame). The CPU twin decodes first
+// (TexelBrdf of runtime/src/hybrid/lobe.rs, Level::texel_brdf); the values are equal.
+struct TexelRef {
+    uint header;
+    uint lobe_base;
+    bool framed;
+    ClothFrame frame;
+};
+
+// Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
+TexelRef texel_brdf(uint level, uint i, uint j) {
+    GpuLevel l = model.levels[level];
+    uint index = j * l.dims.x + i;
+    TexelRef r;
+    r.lobe_base = l.lobe_base;
+    if (l.surface == GPU_SURFACE_CLUSTERED) {
+        uvec2 t = clustered_texels[l.texel_base + index];
+        r.header = l.header_base + (t.y >> 16);
+        r.framed = false;
+        r.frame = decode_frame(t.x, t.y & 0xffffu);
+    } else {
+        r.header = l.header_base + index;
+        r.framed = true;
+        r.frame = ClothFrame(vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0));
+    }
+    return r;
+}
+
+// The level-`level` texel under world point p (wrapped or clamped into the tile).
+// Twin: Scene::texel_at (runtime/src/cpu/render.rs).
+uvec2 texel_at(vec3 p, uint level) {
+    vec2 u = (p.xy - model.origin) / model.texel;
+    int i = int(floor(u.x));
+    int j = int(floor(u.y));
+    if (model_periodic()) {
+        i = wrap_index(i, model.n.x);
+        j = wrap_index(j, model.n.y);
+    } else {
+        i = clamp(i, 0, model.n.x - 1);
+        j = clamp(j, 0, model.n.y - 1);
+    }
+    return uvec2(uint(i) >> level, uint(j) >> level);
+}
+
+// Corner c (0: (0,0), 1: (1,0), 2: (0,1), 3: (1,1)) of the four level-`level` texels
+// around p: its texel and bilinear weight (texel centres at +1/2; wrapped or clamped).
+// Twin: Scene::bilinear_texels, one corner at a time.
+float bilinear_texel(vec3 p, uint level, int c, out uvec2 ij) {
+    GpuLevel l = model.levels[level];
+    ivec2 dims = ivec2(l.dims);
+    float span = float(1u << level);
+    vec2 u = (p.xy - model.origin) / (model.texel * span) - vec2(0.5);
+    vec2 f0 = floor(u);
+    float fx = u.x - f0.x;
+    float fy = u.y - f0.y;
+    int i = int(f0.x) + (c & 1);
+    int j = int(f0.y) + (c >> 1);
+    if (model_periodic()) {
+        i = wrap_index(i, dims.x);
+        j = wrap_index(j, dims.y);
+    } else {
+        i = clamp(i, 0, dims.x - 1);
+        j = clamp(j, 0, dims.y - 1);
+    }
+    ij = uvec2(i, j);
+    float wx = (c & 1) != 0 ? fx : 1.0 - fx;
+    float wy = (c >> 1) != 0 ? fy : 1.0 - fy;
+    return wx * wy;
+}
+
+#endif // MODEL_GLSL

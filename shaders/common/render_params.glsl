@@ -1,0 +1,52 @@
+// render_params.glsl — what one frame of the hybrid renderer is drawn with: the camera,
+// the lights, the options, and the variant's specialization constants.
+//
+// Twin: runtime/src/hybrid/gpu_layout.rs (GpuCamera, GpuLight, GpuRenderParams;
+// binding 7) and runtime/src/gpu/hybrid_pass.rs (the specialization constants).
+#ifndef RENDER_PARAMS_GLSL
+#define RENDER_PARAMS_GLSL
+
+#define GPU_MAX_LIGHTS 8
+#define LEVEL_AUTO 0u
+#define LEVEL_NEAREST 1u
+#define LEVEL_FIXED 2u
+
+// Camera::ray's inputs, the frame precomputed by Camera::frame.
+struct GpuCamera {
+    vec4 origin;        // w: 1 perspective, 0 orthographic
+    vec4 forward;
+    vec4 right;
+    vec4 up;
+    vec2 half_extents;  // Camera::half_extents
+    uvec2 size;         // width, height in pixels
+};
+
+// light_incident's inputs (lights.glsl): vec.w = 0 directional (xyz toward the light),
+// 1 point (xyz its position); power: irradiance or intensity.
+struct GpuLight {
+    vec4 vec;
+    vec4 power;
+};
+
+struct GpuRenderParams {
+    GpuCamera camera;
+    vec4 background;
+    uint light_count;
+    uint max_steps;
+    uint max_flyaway_columns;
+    uint supersampling;
+    uint level_mode;    // LEVEL_*
+    uint fixed_level;
+    float level_bias;
+    uint pad0;
+    GpuLight lights[GPU_MAX_LIGHTS];
+};
+
+layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParams params; };
+
+// Variants: what the scene does not need is compiled out, not branched over.
+layout(constant_id = 0) const bool HAS_FLYAWAYS = true;  // any level has flyaway nodes
+layout(constant_id = 1) const bool SHADOWS = true;       // height-field shadow rays
+layout(constant_id = 2) const uint LIGHT_COUNT = 1u;     // lights[0 .. LIGHT_COUNT)
+
+#endif // RENDER_PARAMS_GLSL

@@ -1,0 +1,144 @@
+// shading.glsl — shading a hit: a texel's lobes (or a flyaway's, in its fiber frame)
+// under each light, with optional height-field shadowing (DESIGN.md §7).
+//
+// Twin: runtime/src/cpu/shading.rs (texel_response, volume_factor, in_fiber_frame,
+// shade, shade_blend) and Scene::visibility (runtime/src/cpu/render.rs). Two
+// differences of form, not of value: texels are evaluated from their records
+// (TexelRef, model.glsl) rather than decoded first, and shade_blend gathers its texels
+// itself (level 0's nearest texel, or the anisotropic taps of bilinear lookups that the
+// CPU's shade_surface lists), in the CPU's order. Each BRDF evaluation and shadow ray
+// has one call site per kind of hit: the driver inlines every call, and its compile
+// time grows with them.
+#ifndef SHADING_GLSL
+#define SHADING_GLSL
+
+#include "common/heightfield.glsl"
+#include "common/render_params.glsl"
+#include "common/lights.glsl"
+
+const float VOLUME_MU_MIN = 0.1;
+
+float max3(vec3 v) {
+    return max(max(v.x, v.y), v.z);
+}
+
+// Reflected radiance toward wo per unit irradiance from wi:
+// k_d max(n_0.wi, 0) + sum_j cloth_lobe_j max(n_j.wi, 0).
+vec3 texel_response(TexelRef r, vec3 wi, vec3 wo, uint reading) {
+    uvec4 h = brdf_headers[r.header];
+    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y));
+    float eta = f16_value(h.y >> 16);
+    float a = f16_value(h.z);
+    uint count = min((h.z >> 16) & 0xffu, uint(CLOTH_MAX_LOBES));
+    uint first = r.lobe_base + h.w;
+    // Lobe 0's frame carries k_d (per-texel tables have at least one lobe).
+    vec3 n0 = r.framed ? octahedral_decode(brdf_lobes[first].x) : r.frame.n;
+    kd = min(max(kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    vec3 resp = kd * max(dot(n0, wi), 0.0);
+    for (uint j = 0u; j < count; ++j) {
+        uvec4 l = brdf_lobes[first + j];
+        ClothFrame f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
+        float cos_i = dot(f.n, wi);
+        if (cos_i > 0.0) {
+            resp += cloth_lobe(packed_lobe(l), eta, a, f, wi, wo, reading) * cos_i;
+        }
+    }
+    return resp;
+}
+
+// 2 / (mu_i + mu_o): the volumetric factor of a model baked with it.
+float volume_factor(vec3 wi, vec3 wo) {
+    return 2.0 / max(max(wi.z, 0.0) + max(wo.z, 0.0), VOLUME_MU_MIN);
+}
+
+// A flyaway's BRDF (entry `param` of its level's table) in the fiber frame of axis
+// `fiber` seen from wo.
+TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
+    GpuLevel l = model.levels[level];
+    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo));
+}
+
+// Visibility of a light from p (height-field shadow ray); counts step-limited rays.
+float visibility(vec3 p, vec3 wi, float dist, inout uint limited) {
+    if (!SHADOWS) {
+        return 1.0;
+    }
+    bool hit_limit;
+    bool blocked = hf_occluded(p, wi, dist, params.max_steps, hit_limit);
+    limited += hit_limit ? 1u : 0u;
+    return blocked ? 0.0 : 1.0;
+}
+
+// The light factor of a hit: shadow ray where `shadowed`, the volumetric factor where
+// `volumetric`.
+float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
+    float v = shadowed ? visibility(p, wi, dist, limited) : 1.0;
+    return volumetric ? v * volume_factor(wi, wo) : v;
+}
+
+// Radiance leaving p toward wo under the lights, from one texel (a flyaway).
+vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
+    uint reading = model_reading();
+    vec3 radiance = vec3(0.0);
+    for (uint k = 0u; k < LIGHT_COUNT; ++k) {
+        vec3 wi;
+        float dist;
+        vec3 irradiance = light_incident(params.lights[k].vec, params.lights[k].power.xyz, p, wi, dist);
+        if (max3(irradiance) <= 0.0) {
+            continue;
+        }
+        vec3 response = texel_response(b, wi, wo, reading);
+        if (max3(response) <= 0.0) {
+            continue;
+        }
+        radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
+    }
+    return radiance;
+}
+
+// Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
+// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of `taps` spread over
+// `axis` (world x-y) centred on p. Returns its weight.
+float surface_texel(uint level, vec3 p, vec2 axis, uint taps, uint k, out TexelRef r) {
+    if (level == 0u) {
+        uvec2 ij0 = texel_at(p, 0u);
+        r = texel_brdf(0u, ij0.x, ij0.y);
+        return 1.0;
+    }
+    uint tap = k >> 2;
+    float n = float(taps);
+    vec2 offset = taps <= 1u ? vec2(0.0) : axis * ((float(tap) + 0.5) / n - 0.5);
+    uvec2 ij;
+    float w = bilinear_texel(p + vec3(offset, 0.0), level, int(k & 3u), ij);
+    r = texel_brdf(level, ij.x, ij.y);
+    return taps <= 1u ? w : w / n;
+}
+
+// Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
+// light's visibility once.
+vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowed, bool volumetric, inout uint limited) {
+    uint reading = model_reading();
+    uint count = level == 0u ? 1u : 4u * taps;
+    vec3 radiance = vec3(0.0);
+    for (uint k = 0u; k < LIGHT_COUNT; ++k) {
+        vec3 wi;
+        float dist;
+        vec3 irradiance = light_incident(params.lights[k].vec, params.lights[k].power.xyz, p, wi, dist);
+        if (max3(irradiance) <= 0.0) {
+            continue;
+        }
+        vec3 response = vec3(0.0);
+        for (uint c = 0u; c < count; ++c) {
+            TexelRef r;
+            float w = surface_texel(level, p, axis, taps, c, r);
+            response += w * texel_response(r, wi, wo, reading);
+        }
+        if (max3(response) <= 0.0) {
+            continue;
+        }
+        radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
+    }
+    return radiance;
+}
+
+#endif // SHADING_GLSL
