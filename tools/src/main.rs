@@ -27,7 +27,7 @@ enum Command {
     Diff(cmd::diff::DiffArgs),
     /// List the Vulkan devices and which one would be chosen.
     Devices(cmd::devices::DevicesArgs),
-    /// Render with the Vulkan renderer (a base mesh for now) and print the GPU frame time.
+    /// Render a hybrid model (GPU, or --backend cpu) or a base mesh; print the frame time.
     Render(cmd::render::RenderArgs),
     /// Open the GPU renderer in a window: orbit camera, live light and exposure.
     View(cmd::view::ViewArgs),

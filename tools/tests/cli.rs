@@ -113,16 +113,27 @@ fn view_without_a_display_is_a_clear_error() {
 }
 
 #[test]
-fn hybrid_models_render_on_the_cpu_and_inspect() {
+fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
     let model = tmp("synthetic.hyb");
     fabric_runtime::hybrid::format::write_file(&fabric_runtime::hybrid::examples::synthetic_model(64, 7), &model).unwrap();
-    let out = tmp("synthetic.png");
-    let o = fabric().arg("render").arg(&model).args(["--view-angles", "30,-90", "--light-angles", "40,-60", "--size", "96x64", "--out"]).arg(&out).output().unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-    assert!(stdout.contains("CPU renderer"), "{stdout}");
-    let img = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
-    assert!(img.mean() > 1e-4, "the lit tile should be visible");
+    let mut images = Vec::new();
+    for backend in ["auto", "cpu"] {
+        let out = tmp(&format!("synthetic-{backend}.exr"));
+        let o = fabric().arg("render").arg(&model).args(["--view-angles", "30,-90", "--light-angles", "40,-60", "--size", "96x64", "--backend", backend, "--out"]).arg(&out).output().unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+        let want = if backend == "auto" { "GPU renderer" } else { "CPU renderer" };
+        assert!(stdout.contains(want), "{stdout}");
+        if backend == "auto" {
+            assert!(stdout.contains("frame time") && stdout.contains("device:"), "{stdout}");
+        }
+        let img = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
+        assert!(img.mean() > 1e-4, "the lit tile should be visible");
+        images.push(img);
+    }
+    // The twins agree (runtime/tests/gpu_hybrid.rs states the tolerance).
+    let rmse = fabric_runtime::metrics::relative_rmse(&images[0], &images[1]).unwrap();
+    assert!(rmse < 0.07, "GPU vs CPU relative RMSE {rmse}");
     let o = fabric().arg("inspect").arg(&model).arg("--json").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("inspect --json prints JSON");

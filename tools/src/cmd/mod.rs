@@ -11,4 +11,5 @@ pub mod prefilter;
 pub mod reference;
 pub mod render;
 pub mod render_cpu;
+pub mod render_gpu;
 pub mod view;

@@ -1,6 +1,6 @@
-//! `fabric render`: draws a base mesh on the GPU (printing the device and the GPU
-//! frame time), or a hybrid model (`MODEL.hyb`) with the CPU renderer of hybrid models,
-//! and writes the image.
+//! `fabric render`: draws a base mesh, or a hybrid model (`MODEL.hyb`) on the GPU
+//! (printing the device and the GPU frame time) or with the CPU renderer of hybrid
+//! models, and writes the image.
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -14,8 +14,8 @@ use crate::args::{CameraArgs, LightArgs, MeshSceneArgs, OutputArgs};
 /// Which renderer draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Backend {
-    /// The GPU for meshes; the CPU renderer for hybrid models (their GPU renderer is
-    /// not built yet).
+    /// The GPU; for hybrid models the CPU renderer when no Vulkan device opens (said
+    /// on the terminal).
     Auto,
     /// The Vulkan renderer.
     Gpu,
@@ -49,12 +49,26 @@ pub struct RenderArgs {
 pub fn run(args: RenderArgs) -> Result<()> {
     args.output.validate()?;
     if let Some(model) = &args.model {
-        return match args.backend {
-            Backend::Auto | Backend::Cpu => {
+        let device = match args.backend {
+            Backend::Cpu => None,
+            Backend::Gpu => Some(super::render_gpu::open_device(&args.scene.device)?),
+            Backend::Auto => match super::render_gpu::open_device(&args.scene.device) {
+                Ok(d) => Some(d),
+                Err(e) => {
+                    println!("note: {e:#}; rendering with the CPU renderer instead (--backend cpu says so up front)");
+                    None
+                }
+            },
+        };
+        return match device {
+            Some(device) => {
+                println!("backend: GPU renderer of hybrid models");
+                super::render_gpu::run(device, model, &args.camera, &args.light, &args.output, &args.cpu, args.repeat)
+            }
+            None => {
                 println!("backend: CPU renderer of hybrid models");
                 super::render_cpu::run(model, &args.camera, &args.light, &args.output, &args.cpu)
             }
-            Backend::Gpu => anyhow::bail!("{}: the GPU renderer of hybrid models is not built yet; use --backend cpu", model.display()),
         };
     }
     if args.backend == Backend::Cpu {

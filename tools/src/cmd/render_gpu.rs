@@ -1,0 +1,83 @@
+//! `fabric render MODEL.hyb --backend gpu`: the GPU renderer of hybrid models
+//! (`fabric_runtime::gpu::HybridPass`, `shaders/hybrid.comp`), with the CPU backend's
+//! flags. Prints the device and the GPU frame time: the median of `--repeat` frames
+//! after one warm-up frame (the first pays for the driver's shader compile).
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use fabric_runtime::cpu::ShadowMode;
+use fabric_runtime::gpu::HybridPass;
+use fabric_runtime::hybrid::format::read_file;
+use fabric_runtime::vk::{Device, DeviceOptions};
+
+use super::render_cpu::CpuRenderFlags;
+use crate::args::{CameraArgs, LightArgs, OutputArgs};
+
+/// Opens the Vulkan device named `name` (or the best one).
+pub fn open_device(name: &Option<String>) -> Result<std::sync::Arc<Device>> {
+    Device::new(&DeviceOptions { name: name.clone(), ..Default::default() }).context("cannot open a Vulkan device")
+}
+
+/// Renders `model_path` on the GPU `device` and writes the image.
+pub fn run(device: std::sync::Arc<Device>, model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags, repeat: u32) -> Result<()> {
+    output.validate()?;
+    let model = read_file(model_path)?;
+    let camera = camera.camera(model.bounds())?;
+    let light = light.light()?;
+    let options = flags.options();
+    if options.shadows == ShadowMode::FromModel {
+        println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
+    } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {
+        println!("warning: the model was fitted {} height-field shadowing; rendering {} it", if model.meta.fitted_with_shadowing { "with" } else { "without" }, if options.shadows == ShadowMode::On { "with" } else { "without" });
+    }
+    let info = device.info().clone();
+    println!("device: {} ({}, driver {})", info.name, info.kind, info.driver);
+    let pass = HybridPass::new(&device)?;
+    let upload_start = std::time::Instant::now();
+    let gpu_model = pass.upload(&model, options.periodic).with_context(|| format!("cannot upload {}", model_path.display()))?;
+    println!("uploaded {:.1} MB in {:.2?}", gpu_model.bytes as f64 / 1e6, upload_start.elapsed());
+    let lights = [light];
+    let warm = std::time::Instant::now();
+    let mut frame = pass.render(&gpu_model, &camera, &lights, &options, None).with_context(|| format!("cannot render {}", model_path.display()))?;
+    let first = warm.elapsed();
+    let mut times = Vec::new();
+    for _ in 0..repeat.max(1) {
+        frame = pass.render(&gpu_model, &camera, &lights, &options, None)?;
+        times.push(frame.gpu_ms);
+    }
+    let errors = device.validation_errors();
+    if !errors.is_empty() {
+        anyhow::bail!("{} Vulkan validation error(s); first: {}", errors.len(), errors[0]);
+    }
+    frame.image.write(&output.out, output.exposure)?;
+    times.sort_by(f64::total_cmp);
+    let s = &frame.stats;
+    let v = frame.variant;
+    println!(
+        "{}: {}x{} on the GPU: frame time {:.3} ms (median of {}, min {:.3} ms; first frame with shader compile {:.2?}) on {}",
+        model_path.display(),
+        camera.width,
+        camera.height,
+        times[times.len() / 2],
+        times.len(),
+        times[0],
+        first,
+        info.name
+    );
+    println!(
+        "variant: flyaways {}, shadows {}, {} light(s); {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}",
+        if v.flyaways { "marched" } else { "skipped" },
+        if v.shadows { "on" } else { "off" },
+        v.lights,
+        s.tile_pixels,
+        s.surface_pixels,
+        s.flyaway_pixels,
+        s.level_pixels
+    );
+    if s.step_limited_pixels > 0 || s.step_limited_shadow_rays > 0 {
+        println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", s.step_limited_pixels, s.step_limited_shadow_rays, options.max_steps);
+    }
+    println!("wrote {}", output.out.display());
+    Ok(())
+}
