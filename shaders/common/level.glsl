@@ -75,15 +75,15 @@ bool footprint_axes_at(float px, float py, float z, out vec2 a, out vec2 b) {
     return true;
 }
 
-// The levels that shade pixel (px, py) when its ray meets the surface at height z.
-LevelMix level_mix(float px, float py, float z) {
+// The levels for a footprint with axes a, b (world x-y steps to the next pixel right
+// and down; ok = false: a neighbour's ray misses the plane). Twin: Scene::level_mix_axes.
+LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     uint last = model.level_count - 1u;
     if (params.level_mode == LEVEL_FIXED) {
         return level_single(min(params.fixed_level, last));
     }
     float bias = params.level_bias;
-    vec2 a, b;
-    if (!footprint_axes_at(px, py, z, a, b)) {
+    if (!ok) {
         return level_single(last);
     }
     float la = length(a / model.texel);
@@ -109,6 +109,13 @@ LevelMix level_mix(float px, float py, float z) {
     m.taps = taps;
     linear_levels(log2(major) + bias, last, m.fly_lo, m.fly_hi, m.fly_weight);
     return m;
+}
+
+// The levels that shade pixel (px, py) when its ray meets the surface at height z.
+LevelMix level_mix(float px, float py, float z) {
+    vec2 a, b;
+    bool ok = footprint_axes_at(px, py, z, a, b);
+    return level_mix_axes(ok, a, b);
 }
 
 #endif // LEVEL_GLSL

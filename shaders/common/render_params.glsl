@@ -44,6 +44,10 @@ struct GpuRenderParams {
 
 layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParams params; };
 
+// The lights shading uses, in tile space: the program fills them (hybrid.comp copies
+// params.lights; hybrid_mesh.frag maps each light into the tile's frame per fragment).
+GpuLight g_lights[GPU_MAX_LIGHTS];
+
 // Variants: what the scene does not need is compiled out, not branched over.
 layout(constant_id = 0) const bool HAS_FLYAWAYS = true;  // any level has flyaway nodes
 layout(constant_id = 1) const bool SHADOWS = true;       // height-field shadow rays

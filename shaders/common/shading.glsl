@@ -83,7 +83,7 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
         float dist;
-        vec3 irradiance = light_incident(params.lights[k].vec, params.lights[k].power.xyz, p, wi, dist);
+        vec3 irradiance = light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
             continue;
         }
@@ -123,7 +123,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
         float dist;
-        vec3 irradiance = light_incident(params.lights[k].vec, params.lights[k].power.xyz, p, wi, dist);
+        vec3 irradiance = light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
             continue;
         }

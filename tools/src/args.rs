@@ -79,12 +79,16 @@ pub struct CameraArgs {
 /// texture, and the device to draw it on.
 #[derive(Args, Clone, Debug)]
 pub struct MeshSceneArgs {
-    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file.
-    #[arg(long, default_value = "sphere")]
-    pub mesh: String,
+    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file (default: sphere;
+    /// with a hybrid model, the fabric is drawn on it, tiled over its UVs).
+    #[arg(long)]
+    pub mesh: Option<String>,
     /// Colour multiplying the mesh's checker texture (V or R,G,B, linear).
     #[arg(long, value_parser = parse_rgb, default_value = "1")]
     pub base_color: Vec3,
+    /// Tile repeats per UV unit of the mesh (U or U,V) when a hybrid model is drawn on it.
+    #[arg(long, value_parser = parse_uv_scale, default_value = "8")]
+    pub uv_scale: glam::Vec2,
     /// Vulkan device to use (substring of its name; see `fabric devices`).
     #[arg(long)]
     pub device: Option<String>,
@@ -213,6 +217,21 @@ pub fn parse_dims(s: &str) -> Result<[usize; 3], String> {
         [_, _, _] => Err(format!("'{s}': every axis needs at least one voxel")),
         _ => Err(format!("expected XxYxZ (e.g. 256x256x48), got '{s}'")),
     }
+}
+
+/// `U` or `U,V`: positive, finite repeats per UV unit.
+fn parse_uv_scale(s: &str) -> Result<glam::Vec2, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    let nums: Result<Vec<f32>, _> = parts.iter().map(|p| p.trim().parse::<f32>()).collect();
+    let v = match nums.map_err(|e| format!("'{s}': {e}"))?.as_slice() {
+        [u] => glam::Vec2::splat(*u),
+        [u, v] => glam::Vec2::new(*u, *v),
+        _ => return Err(format!("'{s}': expected U or U,V")),
+    };
+    if !(v.is_finite() && v.min_element() > 0.0) {
+        return Err(format!("'{s}': repeats per UV unit must be positive and finite"));
+    }
+    Ok(v)
 }
 
 #[cfg(test)]

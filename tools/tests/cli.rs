@@ -134,6 +134,16 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
     // The twins agree (runtime/tests/gpu_hybrid.rs states the tolerance).
     let rmse = fabric_runtime::metrics::relative_rmse(&images[0], &images[1]).unwrap();
     assert!(rmse < 0.07, "GPU vs CPU relative RMSE {rmse}");
+    // On a mesh: the GPU only, and a clear error from the CPU backend.
+    let out = tmp("synthetic-sphere.png");
+    let o = fabric().arg("render").arg(&model).args(["--mesh", "sphere", "--uv-scale", "4,2", "--size", "64x64", "--out"]).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && stdout.contains("on a mesh of"), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(fabric_runtime::image::Image::read(&out, 1.0).unwrap().mean() > 1e-4);
+    let o = fabric().arg("render").arg(&model).args(["--mesh", "sphere", "--backend", "cpu", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("only the GPU renderer"));
+    let o = fabric().arg("render").arg(&model).args(["--mesh", "sphere", "--uv-scale", "0", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("positive"));
     let o = fabric().arg("inspect").arg(&model).arg("--json").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("inspect --json prints JSON");

@@ -151,13 +151,23 @@ impl<'a> Scene<'a> {
 
     /// The levels that shade pixel (px, py) when its ray meets the surface at height `z`.
     pub fn level_mix(&self, px: f32, py: f32, z: f32) -> LevelMix {
+        if let LevelChoice::Fixed(l) = self.options.level {
+            return LevelMix::single(l as usize);
+        }
+        self.level_mix_axes(self.footprint_axes_at(px, py, z))
+    }
+
+    /// The levels for a footprint with axes (a, b) — world x–y steps to where the next
+    /// pixel right and down meet the surface's plane — or None where one of them misses
+    /// it (the coarsest level). A mesh renderer gives screen-space derivatives here.
+    pub fn level_mix_axes(&self, axes: Option<(Vec2, Vec2)>) -> LevelMix {
         let last = self.model.levels.len() - 1;
         let (bias, nearest) = match self.options.level {
             LevelChoice::Fixed(l) => return LevelMix::single(l as usize),
             LevelChoice::Auto { bias } => (bias, false),
             LevelChoice::Nearest { bias } => (bias, true),
         };
-        let Some((a, b)) = self.footprint_axes_at(px, py, z) else {
+        let Some((a, b)) = axes else {
             return LevelMix::single(last);
         };
         let texel = self.model.texel_size();

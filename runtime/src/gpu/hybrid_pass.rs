@@ -14,14 +14,16 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, validate_render};
 use crate::hybrid::HybridModel;
 use crate::hybrid::gpu_layout::{GPU_MAX_LIGHTS, GpuCamera, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
 use crate::image::Image;
-use crate::scene::{Camera, Light};
-use crate::vk::{BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
+use super::mesh_pass::depth_range;
+use super::target::{COLOR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
+use crate::scene::{Camera, Light, Mesh, Vertex};
+use crate::vk::{BindingKind, Buffer, ColorTarget, DescriptorSet, GraphicsDesc, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
 
 /// Why a GPU render cannot run.
 #[derive(Debug, thiserror::Error)]
@@ -72,13 +74,28 @@ pub struct HybridFrame {
     pub variant: Variant,
 }
 
-/// The compute pass and its pipelines.
+/// The compute pass (a tile seen by a camera) and the mesh pass (the tile on a base
+/// mesh's UVs), and their pipelines.
 pub struct HybridPass {
     device: Arc<Device>,
     set_layout: DescriptorSetLayout,
     layout: Arc<PipelineLayout>,
     module: ShaderModule,
     pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
+    mesh_set_layout: DescriptorSetLayout,
+    mesh_layout: Arc<PipelineLayout>,
+    mesh_vert: ShaderModule,
+    mesh_frag: ShaderModule,
+    mesh_pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
+}
+
+/// Push constants of hybrid_mesh.vert/.frag. 80 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct MeshPush {
+    view_proj: [[f32; 4]; 4],
+    uv_scale: [f32; 2],
+    pad: [f32; 2],
 }
 
 /// Statistics words written by the shader (STAT_* of hybrid.comp).
@@ -89,7 +106,22 @@ impl HybridPass {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
         let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 10], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        Ok(HybridPass { device: device.clone(), set_layout, layout, module, pipelines: Mutex::new(HashMap::new()) })
+        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 8], vk::ShaderStageFlags::FRAGMENT)?;
+        let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
+        let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
+        let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
+        Ok(HybridPass {
+            device: device.clone(),
+            set_layout,
+            layout,
+            module,
+            pipelines: Mutex::new(HashMap::new()),
+            mesh_set_layout,
+            mesh_layout,
+            mesh_vert,
+            mesh_frag,
+            mesh_pipelines: Mutex::new(HashMap::new()),
+        })
     }
 
     pub fn device(&self) -> &Arc<Device> {
@@ -125,19 +157,90 @@ impl HybridPass {
         Ok(p)
     }
 
-    /// Renders `model` seen by `camera` under `lights` with `options` (the CPU
-    /// renderer's; `options.periodic` must match the upload). `variant` overrides the
-    /// specialization (tests and benchmarks of the skips); None: what the scene needs.
-    pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+    fn mesh_pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
+        let mut cache = self.mesh_pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = cache.get(&v) {
+            return Ok(p.clone());
+        }
+        let name = format!("hybrid mesh (flyaways {}, shadows {}, {} lights)", v.flyaways, v.shadows, v.lights);
+        let f = vk::Format::R32G32B32_SFLOAT;
+        let p = Arc::new(Pipeline::graphics(
+            &self.device,
+            &GraphicsDesc {
+                name: &name,
+                vertex: &self.mesh_vert,
+                fragment: &self.mesh_frag,
+                layout: &self.mesh_layout,
+                vertex_stride: size_of::<Vertex>() as u32,
+                vertex_attributes: &[(f, 0), (f, 12), (vk::Format::R32G32B32A32_SFLOAT, 24), (vk::Format::R32G32_SFLOAT, 40)],
+                color_format: COLOR_FORMAT,
+                depth_format: Some(DEPTH_FORMAT),
+                cull: vk::CullModeFlags::NONE,
+                specialization: Specialization::new().bool(0, v.flyaways).bool(1, v.shadows).u32(2, v.lights),
+            },
+        )?);
+        cache.insert(v, p.clone());
+        Ok(p)
+    }
+
+    /// Renders `model` (uploaded periodic: the tile repeats) on `mesh`, `uv_scale`
+    /// repeats of the tile per UV unit, seen by `camera` under `lights`, one sample per
+    /// pixel (hybrid_mesh.frag states how the tile is mapped and where this differs
+    /// from [`HybridPass::render`]).
+    #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
+    pub fn render_mesh(&self, model: &GpuHybridModel, mesh: &Mesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
         let shadows = validate_render(&model.model, camera, lights, options)?;
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
-        if options.periodic != model.periodic {
-            return Err(GpuRenderError::Periodic { uploaded: model.periodic });
+        if !model.periodic {
+            return Err(GpuRenderError::Periodic { uploaded: false });
+        }
+        if !(uv_scale.is_finite() && uv_scale.min_element() > 0.0) {
+            return Err(CpuRenderError::Options(format!("UV scale {uv_scale} must be positive and finite")).into());
+        }
+        if mesh.indices.is_empty() || mesh.vertices.is_empty() {
+            return Err(VkError::Invalid("mesh has no triangles".into()).into());
         }
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows));
-        let pipeline = self.pipeline(variant)?;
+        let pipeline = self.mesh_pipeline(variant)?;
+        let dev = &self.device;
+        let param_buf = self.params_buffer(camera, lights, options)?;
+        let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
+        resources.push(Resource::Buffer(&param_buf));
+        let set = DescriptorSet::new(dev, &self.mesh_set_layout, &resources)?;
+        let vertices = Buffer::with_data(dev, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?;
+        let indices = Buffer::with_data(dev, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?;
+        let (near, far) = depth_range(camera, mesh.bounds());
+        let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
+        let target = OffscreenTarget::new(dev, camera.width, camera.height)?;
+        let timestamps = Timestamps::new(dev, 2)?;
+        let bg = options.background;
+        dev.record_and_run("hybrid mesh pass", |rec| {
+            rec.reset_timestamps(&timestamps);
+            rec.timestamp(&timestamps, 0);
+            target.record_begin(rec);
+            rec.begin_rendering(&ColorTarget { image: &target.color, clear: [bg.x, bg.y, bg.z, 1.0] }, Some(&target.depth));
+            rec.bind_pipeline(&pipeline);
+            rec.bind_sets(&pipeline, &[&set]);
+            rec.push_constants(&pipeline, bytemuck::bytes_of(&push));
+            rec.bind_vertex_buffer(&vertices);
+            rec.bind_index_buffer_u32(&indices);
+            rec.draw_indexed(mesh.indices.len() as u32);
+            rec.end_rendering();
+            rec.timestamp(&timestamps, 1);
+            target.record_readback(rec);
+        })?;
+        let image = target.to_image()?;
+        if let Some((x, y, _)) = image.first_non_finite() {
+            return Err(GpuRenderError::NonFinite { count: image.pixels.iter().filter(|p| !p.is_finite()).count() as u32, x, y });
+        }
+        let stats = RenderStats { pixels: camera.width as u64 * camera.height as u64, level_pixels: vec![0; model.levels], ..Default::default() };
+        Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant })
+    }
+
+    /// The frame's parameters in a host-visible buffer.
+    fn params_buffer(&self, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<Buffer, GpuRenderError> {
         let (level_mode, fixed_level, level_bias) = match options.level {
             LevelChoice::Auto { bias } => (LEVEL_AUTO, 0, bias),
             LevelChoice::Nearest { bias } => (LEVEL_NEAREST, 0, bias),
@@ -160,9 +263,26 @@ impl HybridPass {
             pad: 0,
             lights: gpu_lights,
         };
+        let buf = Buffer::new(&self.device, "hybrid params", size_of::<GpuRenderParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
+        buf.write_mapped(bytemuck::bytes_of(&params))?;
+        Ok(buf)
+    }
+
+    /// Renders `model` seen by `camera` under `lights` with `options` (the CPU
+    /// renderer's; `options.periodic` must match the upload). `variant` overrides the
+    /// specialization (tests and benchmarks of the skips); None: what the scene needs.
+    pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+        let shadows = validate_render(&model.model, camera, lights, options)?;
+        if lights.len() > GPU_MAX_LIGHTS {
+            return Err(GpuRenderError::TooManyLights { count: lights.len() });
+        }
+        if options.periodic != model.periodic {
+            return Err(GpuRenderError::Periodic { uploaded: model.periodic });
+        }
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows));
+        let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
-        let param_buf = Buffer::new(dev, "hybrid params", size_of::<GpuRenderParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
-        param_buf.write_mapped(bytemuck::bytes_of(&params))?;
+        let param_buf = self.params_buffer(camera, lights, options)?;
         let (w, h) = (camera.width, camera.height);
         // Device-local: on a discrete GPU the shader must not write across the bus.
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;

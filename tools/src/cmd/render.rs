@@ -49,9 +49,13 @@ pub struct RenderArgs {
 pub fn run(args: RenderArgs) -> Result<()> {
     args.output.validate()?;
     if let Some(model) = &args.model {
+        if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
+            anyhow::bail!("--mesh draws the fabric on a mesh, which only the GPU renderer does; the CPU renderer draws the tile on its plane");
+        }
         let device = match args.backend {
             Backend::Cpu => None,
             Backend::Gpu => Some(super::render_gpu::open_device(&args.scene.device)?),
+            Backend::Auto if args.scene.mesh.is_some() => Some(super::render_gpu::open_device(&args.scene.device)?),
             Backend::Auto => match super::render_gpu::open_device(&args.scene.device) {
                 Ok(d) => Some(d),
                 Err(e) => {
@@ -63,7 +67,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return match device {
             Some(device) => {
                 println!("backend: GPU renderer of hybrid models");
-                super::render_gpu::run(device, model, &args.camera, &args.light, &args.output, &args.cpu, args.repeat)
+                super::render_gpu::run(device, model, args.scene.mesh.as_deref(), args.scene.uv_scale, &args.camera, &args.light, &args.output, &args.cpu, args.repeat)
             }
             None => {
                 println!("backend: CPU renderer of hybrid models");
@@ -74,7 +78,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.backend == Backend::Cpu {
         anyhow::bail!("--backend cpu renders hybrid models (give MODEL.hyb); meshes are drawn on the GPU");
     }
-    let mesh = Mesh::by_name(&args.scene.mesh)?;
+    let mesh = Mesh::by_name(args.scene.mesh.as_deref().unwrap_or("sphere"))?;
     let camera = args.camera.camera(mesh.bounds())?;
     let light = args.light.light()?;
     let device = Device::new(&DeviceOptions { name: args.scene.device.clone(), ..Default::default() }).context("cannot open a Vulkan device")?;
@@ -97,7 +101,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     times.sort_by(f64::total_cmp);
     println!(
         "mesh '{}' ({} triangles) at {}x{}: GPU frame time {:.3} ms (median of {}, min {:.3} ms) on {}",
-        args.scene.mesh,
+        args.scene.mesh.as_deref().unwrap_or("sphere"),
         mesh.indices.len() / 3,
         camera.width,
         camera.height,

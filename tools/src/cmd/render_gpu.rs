@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use fabric_runtime::cpu::ShadowMode;
 use fabric_runtime::gpu::HybridPass;
 use fabric_runtime::hybrid::format::read_file;
+use fabric_runtime::scene::Mesh;
 use fabric_runtime::vk::{Device, DeviceOptions};
 
 use super::render_cpu::CpuRenderFlags;
@@ -19,13 +20,20 @@ pub fn open_device(name: &Option<String>) -> Result<std::sync::Arc<Device>> {
     Device::new(&DeviceOptions { name: name.clone(), ..Default::default() }).context("cannot open a Vulkan device")
 }
 
-/// Renders `model_path` on the GPU `device` and writes the image.
-pub fn run(device: std::sync::Arc<Device>, model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags, repeat: u32) -> Result<()> {
+/// Renders `model_path` on the GPU `device` — on a tile seen by the camera, or tiled
+/// over `mesh`'s UVs (`uv_scale` repeats per UV unit) — and writes the image.
+#[allow(clippy::too_many_arguments)] // the command's flag groups, passed through
+pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>, uv_scale: glam::Vec2, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags, repeat: u32) -> Result<()> {
     output.validate()?;
     let model = read_file(model_path)?;
-    let camera = camera.camera(model.bounds())?;
+    let mesh = mesh.map(Mesh::by_name).transpose()?;
+    let camera = camera.camera(mesh.as_ref().map_or(model.bounds(), |m| m.bounds()))?;
     let light = light.light()?;
-    let options = flags.options();
+    let mut options = flags.options();
+    if mesh.is_some() {
+        // On a mesh the tile repeats over the UVs.
+        options.periodic = true;
+    }
     if options.shadows == ShadowMode::FromModel {
         println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
     } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {
@@ -38,12 +46,16 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, camera: &CameraArg
     let gpu_model = pass.upload(&model, options.periodic).with_context(|| format!("cannot upload {}", model_path.display()))?;
     println!("uploaded {:.1} MB in {:.2?}", gpu_model.bytes as f64 / 1e6, upload_start.elapsed());
     let lights = [light];
+    let draw = || match &mesh {
+        Some(m) => pass.render_mesh(&gpu_model, m, uv_scale, &camera, &lights, &options, None),
+        None => pass.render(&gpu_model, &camera, &lights, &options, None),
+    };
     let warm = std::time::Instant::now();
-    let mut frame = pass.render(&gpu_model, &camera, &lights, &options, None).with_context(|| format!("cannot render {}", model_path.display()))?;
+    let mut frame = draw().with_context(|| format!("cannot render {}", model_path.display()))?;
     let first = warm.elapsed();
     let mut times = Vec::new();
     for _ in 0..repeat.max(1) {
-        frame = pass.render(&gpu_model, &camera, &lights, &options, None)?;
+        frame = draw()?;
         times.push(frame.gpu_ms);
     }
     let errors = device.validation_errors();
@@ -65,16 +77,11 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, camera: &CameraArg
         first,
         info.name
     );
-    println!(
-        "variant: flyaways {}, shadows {}, {} light(s); {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}",
-        if v.flyaways { "marched" } else { "skipped" },
-        if v.shadows { "on" } else { "off" },
-        v.lights,
-        s.tile_pixels,
-        s.surface_pixels,
-        s.flyaway_pixels,
-        s.level_pixels
-    );
+    let variant = format!("variant: flyaways {}, shadows {}, {} light(s)", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights);
+    match &mesh {
+        Some(m) => println!("{variant}; on a mesh of {} triangles, {}x{} tiles per UV unit", m.indices.len() / 3, uv_scale.x, uv_scale.y),
+        None => println!("{variant}; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}", s.tile_pixels, s.surface_pixels, s.flyaway_pixels, s.level_pixels),
+    }
     if s.step_limited_pixels > 0 || s.step_limited_shadow_rays > 0 {
         println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", s.step_limited_pixels, s.step_limited_shadow_rays, options.max_steps);
     }

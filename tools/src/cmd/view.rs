@@ -297,7 +297,7 @@ impl ApplicationHandler for App {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    let mesh = Mesh::by_name(&args.scene.mesh)?;
+    let mesh = Mesh::by_name(args.scene.mesh.as_deref().unwrap_or("sphere"))?;
     let event_loop = EventLoop::new().map_err(|e| anyhow!("cannot connect to the window system ({e}); is DISPLAY set? for headless use: Xvfb :99 & DISPLAY=:99"))?;
     let mut app = App { args, mesh, viewer: None, error: None, dragging: None, cursor: None };
     event_loop.run_app(&mut app).context("window event loop")?;

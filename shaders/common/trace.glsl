@@ -1,0 +1,110 @@
+// trace.glsl — one ray through the hybrid model in tile space: it enters the tile's top
+// plane, the height field is marched to the first surface hit, the levels come from the
+// footprint at that hit (choose_levels, which the program defines), the flyaways in
+// front are composited over the surface shaded with its texels' lobes (DESIGN.md §7).
+//
+// Twin: runtime/src/cpu/render.rs (Scene::enter_top, trace_mixed, march_level_flyaways,
+// shade_surface), function for function. Programs: hybrid.comp (a camera over the tile:
+// the footprint from the neighbouring pixels' rays, as the CPU) and hybrid_mesh.frag (the
+// tile mapped onto a mesh's UVs: the footprint from screen-space derivatives).
+#ifndef TRACE_GLSL
+#define TRACE_GLSL
+
+#include "common/level.glsl"
+#include "common/flyaways.glsl"
+
+// The levels for a ray meeting the surface at height z (tile space): defined by the program.
+LevelMix choose_levels(float z);
+
+struct PixelTrace {
+    vec3 radiance;
+    int level;           // the finer of a blend's two; -1: missed the tile
+    bool surface;
+    float flyaway_opacity;
+    bool step_limited;
+    uint shadow_step_limited;
+    uint steps;
+};
+
+// Where the ray enters the top plane, or false: from below, parallel, or (clamped
+// tile) outside the tile.
+bool enter_top(vec3 o, vec3 d, out float t) {
+    t = 0.0;
+    if (!(d.z < 0.0) || o.z < model.top_z) {
+        return false;
+    }
+    t = (model.top_z - o.z) / d.z;
+    if (!model_periodic()) {
+        vec2 p = (o + d * t).xy - model.origin;
+        if (p.x < 0.0 || p.y < 0.0 || p.x > model.size.x || p.y > model.size.y) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// The flyaways of `level` over [t_top, t_end].
+FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level, inout uint shadow_limited) {
+    if (!HAS_FLYAWAYS || model.levels[level].fly_nodes == 0u) {
+        return FlyawayMarch(vec3(0.0), 1.0, 0u, false);
+    }
+    return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, shadow_limited);
+}
+
+// The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
+vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, inout uint shadow_limited) {
+    vec3 p = o + t * d;
+    bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
+    bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
+    return shade_blend(level, p, -d, mix_.axis, mix_.taps, shadowed, volumetric, shadow_limited);
+}
+
+// One ray, shaded with the levels choose_levels gives where it meets the surface (the
+// top plane if it misses). The two levels of a blend are loops, not two
+// calls: one inlined copy of each march and of the shading.
+PixelTrace trace_mixed(vec3 o, vec3 d) {
+    PixelTrace out_ = PixelTrace(params.background.rgb, -1, false, 0.0, false, 0u, 0u);
+    float t_top;
+    if (!enter_top(o, d, t_top)) {
+        return out_;
+    }
+    uint steps = 0u;
+    HfTrace hit = hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps);
+    out_.step_limited = hit.kind == HF_STEP_LIMIT;
+    out_.steps = steps;
+    out_.surface = hit.kind == HF_HIT;
+    float z = out_.surface ? (o + d * hit.t).z : model.top_z;
+    LevelMix mix_ = choose_levels(z);
+    out_.level = int(mix_.lo);
+    float t_end = out_.surface ? hit.t : t_top + model.height_scale / -d.z;
+    uint shadow_limited = 0u;
+    // The flyaways in front, blended over their levels.
+    vec3 fly_radiance = vec3(0.0);
+    float fly_transmittance = 0.0;
+    bool fly_blend = mix_.fly_weight > 0.0 && mix_.fly_hi != mix_.fly_lo;
+    for (uint k = 0u; k < (fly_blend ? 2u : 1u); ++k) {
+        float w = fly_blend ? (k == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
+        FlyawayMarch fly = march_level_flyaways(o, d, t_top, t_end, k == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
+        fly_radiance = k == 0u ? fly.radiance * w : fly_radiance + fly.radiance * w;
+        fly_transmittance = k == 0u ? fly.transmittance * w : fly_transmittance + fly.transmittance * w;
+        out_.step_limited = out_.step_limited || fly.limited;
+    }
+    out_.flyaway_opacity = 1.0 - fly_transmittance;
+    // What they let through sees the surface, blended over its levels.
+    vec3 behind = params.background.rgb;
+    if (out_.surface) {
+        behind = vec3(0.0);
+        if (fly_transmittance > 0.0) {
+            bool blend = mix_.weight > 0.0 && mix_.hi != mix_.lo;
+            for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
+                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, shadow_limited);
+                behind = !blend ? s : (k == 0u ? s * (1.0 - mix_.weight) : behind + s * mix_.weight);
+            }
+        }
+    }
+    out_.shadow_step_limited = shadow_limited;
+    out_.radiance = fly_radiance + fly_transmittance * behind;
+    return out_;
+}
+
+#endif // TRACE_GLSL
