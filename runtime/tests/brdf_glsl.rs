@@ -8,10 +8,11 @@ use std::sync::Arc;
 
 use fabric_runtime::brdf::twin::{BrdfEvalInput, BrdfEvalOutput, generate_inputs};
 use fabric_runtime::brdf::{BETA_MIN, K_MAX};
-use fabric_runtime::vk::{BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, Device, DeviceOptions, InstanceOptions, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, vk};
+use fabric_runtime::vk::{CheckedDevice, BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, vk};
 
-fn device() -> Arc<Device> {
-    Device::new(&DeviceOptions { instance: InstanceOptions { validation: Some(true), ..Default::default() }, ..Default::default() }).expect("a Vulkan device (lavapipe in CI)")
+/// The device, validation on; its drop fails the test on any validation error.
+fn device() -> CheckedDevice {
+    CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)")
 }
 
 /// Runs brdf_eval.comp on `inputs`.

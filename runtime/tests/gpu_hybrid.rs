@@ -4,19 +4,18 @@
 //! automatic, nearest and fixed levels, clamped and periodic tiles, flyaways, shadows,
 //! several lights; the variants that skip work; bad input.
 
-use std::sync::Arc;
-
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render_with_stats};
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{HybridModel, examples};
 use fabric_runtime::image::Image;
 use fabric_runtime::metrics::{flip, relative_rmse};
 use fabric_runtime::scene::{Camera, Light, Projection};
-use fabric_runtime::vk::{Device, DeviceOptions, InstanceOptions};
+use fabric_runtime::vk::{CheckedDevice, Device};
 use glam::Vec3;
 
-fn device() -> Arc<Device> {
-    Device::new(&DeviceOptions { instance: InstanceOptions { validation: Some(true), ..Default::default() }, ..Default::default() }).expect("a Vulkan device (lavapipe in CI)")
+/// The device, validation on; its drop fails the test on any validation error.
+fn device() -> CheckedDevice {
+    CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)")
 }
 
 fn assert_no_validation_errors(device: &Device) {

@@ -7,11 +7,12 @@ use fabric_runtime::gpu::MeshPass;
 use fabric_runtime::gpu::mesh_pass::checker_texture;
 use fabric_runtime::image::srgb_decode;
 use fabric_runtime::scene::{Camera, Light, Mesh, Projection};
-use fabric_runtime::vk::{Device, DeviceOptions, InstanceOptions, vk};
+use fabric_runtime::vk::{CheckedDevice, Device, vk};
 use glam::{Vec2, Vec3};
 
-fn device() -> Arc<Device> {
-    Device::new(&DeviceOptions { instance: InstanceOptions { validation: Some(true), ..Default::default() }, ..Default::default() }).expect("a Vulkan device (lavapipe in CI)")
+/// The device, validation on; its drop fails the test on any validation error.
+fn device() -> CheckedDevice {
+    CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)")
 }
 
 fn assert_clean(device: &Device) {
@@ -26,7 +27,9 @@ fn top_camera(width: u32, height: u32, extent: f32) -> Camera {
 
 #[test]
 fn validation_errors_are_caught() {
-    let device = device();
+    let mut device = device();
+    // The canary provokes an error on purpose; the guard must not fail the test for it.
+    device.expect_errors();
     if !device.instance().validation_enabled() {
         // CI sets FABRIC_REQUIRE_VALIDATION=1 (it installs the layer), so there a missing
         // layer fails here instead of silently turning every validation check off.

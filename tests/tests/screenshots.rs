@@ -7,7 +7,7 @@ use std::sync::Arc;
 use fabric_runtime::gpu::MeshPass;
 use fabric_runtime::image::Image;
 use fabric_runtime::scene::{Camera, Light, Mesh, Projection, direction_from_angles};
-use fabric_runtime::vk::{Device, DeviceOptions, InstanceOptions};
+use fabric_runtime::vk::{CheckedDevice, Device};
 use fabric_tests::{FlipTolerance, check_golden};
 use glam::Vec3;
 
@@ -20,8 +20,9 @@ use glam::Vec3;
 /// `goldens_catch_real_changes`).
 const TOLERANCE: FlipTolerance = FlipTolerance { mean: 0.01, p95: 0.05 };
 
-fn device() -> Arc<Device> {
-    Device::new(&DeviceOptions { instance: InstanceOptions { validation: Some(true), ..Default::default() }, ..Default::default() }).expect("a Vulkan device (lavapipe in CI)")
+/// The device, validation on; its drop fails the test on any validation error.
+fn device() -> CheckedDevice {
+    CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)")
 }
 
 fn sphere_scene(light_theta: f32, base: Vec3) -> (Mesh, Camera, Light, Vec3) {
@@ -65,4 +66,30 @@ fn goldens_catch_real_changes() {
         eprintln!("{what}: {r:?}");
         assert!(r.is_err(), "a {what} must fail the golden comparison");
     }
+}
+
+/// The GPU renderer of hybrid models on the synthetic woven model
+/// (`hybrid::examples::synthetic_model`, made here), seen directly on its tile and
+/// drawn on a sphere, under a directional and a point light.
+fn hybrid_frames(device: &Arc<Device>) -> (Image, Image) {
+    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode};
+    use fabric_runtime::gpu::HybridPass;
+    let pass = HybridPass::new(device).unwrap();
+    let model = fabric_runtime::hybrid::examples::synthetic_model(64, 7);
+    let g = pass.upload(&model, true).unwrap();
+    let lights = [Light::directional(direction_from_angles(40.0, 210.0), Vec3::splat(2.0)), Light::Point { position: Vec3::new(1.5, -1.0, 2.0), intensity: Vec3::splat(4.0) }];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let plane_cam = Camera { origin: Vec3::new(0.9, -0.4, 0.7), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 200, height: 150 };
+    let plane = pass.render(&g, &plane_cam, &lights, &opts, None).unwrap().image;
+    let sphere_cam = Camera { origin: Vec3::new(0.0, -3.0, 1.5), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 160, height: 160 };
+    let sphere = pass.render_mesh(&g, &Mesh::sphere(1.0, 96, 48), glam::Vec2::new(6.0, 3.0), &sphere_cam, &lights, &opts, None).unwrap().image;
+    (plane, sphere)
+}
+
+#[test]
+fn hybrid_model_on_its_tile_and_on_a_sphere() {
+    let device = device();
+    let (plane, sphere) = hybrid_frames(&device);
+    check_golden("hybrid-synthetic-tile", &plane, 4.0, TOLERANCE).unwrap();
+    check_golden("hybrid-synthetic-sphere", &sphere, 4.0, TOLERANCE).unwrap();
 }

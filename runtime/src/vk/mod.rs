@@ -4,6 +4,7 @@
 //! `Arc<Instance>`, so destruction runs resources → device → instance.
 
 pub mod buffer;
+pub mod checked;
 pub mod commands;
 pub mod descriptor;
 pub mod device;
@@ -17,6 +18,7 @@ pub mod sync;
 pub mod timing;
 
 pub use buffer::Buffer;
+pub use checked::CheckedDevice;
 pub use commands::{ColorTarget, Recorder};
 pub use descriptor::{BindingKind, DescriptorSet, DescriptorSetLayout, Resource};
 pub use device::{Device, DeviceInfo, DeviceOptions, enumerate_devices};
