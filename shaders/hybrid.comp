@@ -6,9 +6,9 @@
 // Twin: runtime/src/cpu/render.rs (Scene::trace_pixel and the image loop; the rest is
 // in the includes).
 //
-// Bindings (set 0): 0-6 the model (common/model.glsl), 7 the frame's parameters
-// (common/render_params.glsl), 8 the image (vec4 per pixel, x fastest, rgb radiance),
-// 9 the statistics (uint counters, STAT_*). One invocation per pixel, 8x8 per group.
+// Bindings (set 0): 0-6 the model (common/model.glsl), 7 the frame's parameters and
+// 8 the edit mask (common/render_params.glsl), 9 the image (vec4 per pixel, x fastest,
+// rgb radiance), 10 the statistics (uint counters, STAT_*). One invocation per pixel, 8x8 per group.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
@@ -16,8 +16,8 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(std430, set = 0, binding = 8) writeonly buffer ImageBlock { vec4 pixels[]; };
-layout(std430, set = 0, binding = 9) buffer StatsBlock { uint stats[]; };
+layout(std430, set = 0, binding = 9) writeonly buffer ImageBlock { vec4 pixels[]; };
+layout(std430, set = 0, binding = 10) buffer StatsBlock { uint stats[]; };
 
 // runtime/src/gpu/hybrid_pass.rs reads these (RenderStats).
 #define STAT_TILE 0

@@ -2,7 +2,7 @@
 // the lights, the options, and the variant's specialization constants.
 //
 // Twin: runtime/src/hybrid/gpu_layout.rs (GpuCamera, GpuLight, GpuRenderParams;
-// binding 7) and runtime/src/gpu/hybrid_pass.rs (the specialization constants).
+// bindings 7 and 8) and runtime/src/gpu/hybrid_pass.rs (the specialization constants).
 #ifndef RENDER_PARAMS_GLSL
 #define RENDER_PARAMS_GLSL
 
@@ -39,10 +39,16 @@ struct GpuRenderParams {
     uint fixed_level;
     float level_bias;
     uint pad0;
+    vec4 edit_tint;       // rgb
+    float edit_roughness;
+    float edit_rotation;  // radians
+    uvec2 mask_dims;      // 0 x 0: no mask
     GpuLight lights[GPU_MAX_LIGHTS];
 };
 
 layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParams params; };
+// The edit mask: one value in [0, 1] per pixel, row 0 at the top (+y), x fastest.
+layout(std430, set = 0, binding = 8) readonly buffer MaskBlock { float edit_mask[]; };
 
 // The lights shading uses, in tile space: the program fills them (hybrid.comp copies
 // params.lights; hybrid_mesh.frag maps each light into the tile's frame per fragment).

@@ -22,11 +22,36 @@ float max3(vec3 v) {
     return max(max(v.x, v.y), v.z);
 }
 
-// Reflected radiance toward wo per unit irradiance from wi:
+// The edit at a hit (twin: Edits::at, runtime/src/cpu/edits.rs): the identity blended
+// toward the frame's edit by the mask's value at the hit's place in the tile.
+struct Edit {
+    vec3 tint;
+    float roughness_scale;
+    float tangent_rotation;
+};
+
+Edit hit_edit(vec3 p) {
+    float m = 1.0;
+    uvec2 md = params.mask_dims;
+    if (md.x > 0u && md.y > 0u) {
+        vec2 u = (p.xy - model.origin) / model.size;
+        u -= floor(u);
+        uint i = min(uint(u.x * float(md.x)), md.x - 1u);
+        uint row_from_bottom = min(uint(u.y * float(md.y)), md.y - 1u);
+        m = edit_mask[(md.y - 1u - row_from_bottom) * md.x + i];
+    }
+    return Edit(vec3(1.0) + m * (params.edit_tint.rgb - vec3(1.0)), 1.0 + m * (params.edit_roughness - 1.0), m * params.edit_rotation);
+}
+
+// Reflected radiance toward wo per unit irradiance from wi, the texel edited by `e`
+// (its tangents rotated where `rotate`; Edit::apply):
 // k_d max(n_0.wi, 0) + sum_j cloth_lobe_j max(n_j.wi, 0).
-vec3 texel_response(TexelRef r, vec3 wi, vec3 wo, uint reading) {
+vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint reading) {
     uvec4 h = brdf_headers[r.header];
-    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y));
+    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y)) * e.tint;
+    float rs = sin(e.tangent_rotation);
+    float rc = cos(e.tangent_rotation);
+    rotate = rotate && e.tangent_rotation != 0.0;
     float eta = f16_value(h.y >> 16);
     float a = f16_value(h.z);
     uint count = min((h.z >> 16) & 0xffu, uint(CLOTH_MAX_LOBES));
@@ -38,9 +63,18 @@ vec3 texel_response(TexelRef r, vec3 wi, vec3 wo, uint reading) {
     for (uint j = 0u; j < count; ++j) {
         uvec4 l = brdf_lobes[first + j];
         ClothFrame f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
+        if (rotate) {
+            vec3 t = f.t * rc + f.b * rs;
+            f.t = t;
+            f.b = cross(f.n, t);
+        }
         float cos_i = dot(f.n, wi);
         if (cos_i > 0.0) {
-            resp += cloth_lobe(packed_lobe(l), eta, a, f, wi, wo, reading) * cos_i;
+            ClothLobe lobe = packed_lobe(l);
+            lobe.k *= e.tint;
+            lobe.beta *= e.roughness_scale;
+            lobe.gamma *= e.roughness_scale;
+            resp += cloth_lobe(lobe, eta, a, f, wi, wo, reading) * cos_i;
         }
     }
     return resp;
@@ -76,9 +110,11 @@ float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool vol
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
 
-// Radiance leaving p toward wo under the lights, from one texel (a flyaway).
+// Radiance leaving p toward wo under the lights, from one texel (a flyaway: edited
+// without rotation).
 vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
+    Edit e = hit_edit(p);
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
@@ -87,7 +123,7 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
         if (max3(irradiance) <= 0.0) {
             continue;
         }
-        vec3 response = texel_response(b, wi, wo, reading);
+        vec3 response = texel_response(b, e, false, wi, wo, reading);
         if (max3(response) <= 0.0) {
             continue;
         }
@@ -118,6 +154,7 @@ float surface_texel(uint level, vec3 p, vec2 axis, uint taps, uint k, out TexelR
 // light's visibility once.
 vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
+    Edit e = hit_edit(p);
     uint count = level == 0u ? 1u : 4u * taps;
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
@@ -131,7 +168,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, axis, taps, c, r);
-            response += w * texel_response(r, wi, wo, reading);
+            response += w * texel_response(r, e, true, wi, wo, reading);
         }
         if (max3(response) <= 0.0) {
             continue;

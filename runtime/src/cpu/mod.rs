@@ -20,6 +20,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod edits;
 pub mod flyaways;
 pub mod heightfield;
 pub mod probe;
@@ -28,6 +29,7 @@ pub mod shading;
 
 use glam::Vec3;
 
+pub use edits::{Edit, EditMask, Edits};
 pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats, validate_render};
 
 use crate::hybrid::ModelError;
@@ -73,6 +75,10 @@ pub struct CpuRenderOptions {
     pub supersampling: u32,
     /// Radiance where rays miss the tile.
     pub background: Vec3,
+    /// March the flyaways (off: the surface alone, as if the model had none).
+    pub flyaways: bool,
+    /// Appearance edits (identity by default).
+    pub edits: Edits,
 }
 
 impl Default for CpuRenderOptions {
@@ -85,6 +91,8 @@ impl Default for CpuRenderOptions {
             max_flyaway_columns: 16384,
             supersampling: 1,
             background: Vec3::ZERO,
+            flyaways: true,
+            edits: Edits::default(),
         }
     }
 }

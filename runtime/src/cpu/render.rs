@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
+use super::edits::Edit;
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
 use crate::brdf::BrdfReading;
 use crate::hybrid::{HybridModel, TexelBrdf};
@@ -42,6 +43,8 @@ pub struct Scene<'a> {
     pub tracer: HeightTracer,
     pub shadows: bool,
     reading: BrdfReading,
+    /// Whether `options.edits` changes anything.
+    edited: bool,
     pub(crate) grids: Vec<FlyawayGrid>,
 }
 
@@ -115,7 +118,7 @@ impl<'a> Scene<'a> {
     pub fn new(model: &'a HybridModel, camera: &'a Camera, lights: &'a [Light], options: CpuRenderOptions) -> Result<Scene<'a>, CpuRenderError> {
         let shadows = validate_render(model, camera, lights, &options)?;
         let grids = (0..model.levels.len()).map(|l| FlyawayGrid::new(model, l, options.periodic)).collect();
-        Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, options })
+        Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, edited: !options.edits.is_identity(), options })
     }
 
     /// A scene for rays given by the caller rather than by a camera (the baker's probe,
@@ -253,6 +256,12 @@ impl<'a> Scene<'a> {
         [texel(0, 0, (1.0 - fx) * (1.0 - fy)), texel(1, 0, fx * (1.0 - fy)), texel(0, 1, (1.0 - fx) * fy), texel(1, 1, fx * fy)]
     }
 
+    /// The edit at world point `p` (its position in the tile looks up the mask).
+    pub fn edit_at(&self, p: Vec3) -> Edit {
+        let t = &self.model.tile;
+        self.options.edits.at((p.truncate() - t.origin) / t.size)
+    }
+
     /// Visibility of a light from `p` (height-field shadow ray), counting step-limited
     /// shadow rays.
     pub fn visibility(&self, p: Vec3, s: &LightSample, limited: &mut u32) -> f32 {
@@ -323,11 +332,15 @@ impl<'a> Scene<'a> {
     fn march_level_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize) -> FlyShade {
         let wo = -ray.d;
         let mut out = FlyShade { radiance: Vec3::ZERO, transmittance: 1.0, limited: false, shadow_limited: 0 };
+        if !self.options.flyaways {
+            return out;
+        }
         if let Some(f) = self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
             let mut shadow_limited = 0u32;
             let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in| {
                 let p = ray.at(t_in);
                 let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
+                let b = if self.edited { self.edit_at(p).apply(b, false) } else { b };
                 shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited))
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
@@ -349,17 +362,20 @@ impl<'a> Scene<'a> {
             let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
             if volumetric { v * volume_factor(s.wi, wo) } else { v }
         };
+        // The edit at the hit (the same for all its texels).
+        let edit = self.edited.then(|| self.edit_at(p));
+        let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));
         let radiance = if level == 0 {
             let (i, j) = self.texel_at(p, 0);
-            shade(&l.texel_brdf(i, j), p, wo, self.lights, self.reading, visible)
+            shade(&edited(l.texel_brdf(i, j)), p, wo, self.lights, self.reading, visible)
         } else if mix.taps <= 1 {
-            shade_blend(&self.bilinear_texels(p, level), p, wo, self.lights, self.reading, visible)
+            shade_blend(&self.bilinear_texels(p, level).map(|(b, w)| (edited(b), w)), p, wo, self.lights, self.reading, visible)
         } else {
             let n = mix.taps;
             let mut texels = Vec::with_capacity(4 * n as usize);
             for k in 0..n {
                 let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
-                texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (b, w / n as f32)));
+                texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (edited(b), w / n as f32)));
             }
             shade_blend(&texels, p, wo, self.lights, self.reading, visible)
         };
@@ -418,6 +434,7 @@ pub fn validate_render(model: &HybridModel, camera: &Camera, lights: &[Light], o
     if !options.background.is_finite() {
         return Err(CpuRenderError::Options(format!("background {} is not finite", options.background)));
     }
+    options.edits.validate().map_err(CpuRenderError::Options)?;
     Ok(match options.shadows {
         ShadowMode::FromModel => model.meta.fitted_with_shadowing,
         ShadowMode::On => true,

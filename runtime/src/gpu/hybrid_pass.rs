@@ -104,9 +104,9 @@ const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
-        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 10], vk::ShaderStageFlags::COMPUTE)?;
+        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 11], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 8], vk::ShaderStageFlags::FRAGMENT)?;
+        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 9], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
         let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
         let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
@@ -140,9 +140,10 @@ impl HybridPass {
         Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), levels: model.levels.len(), bytes, model: model.clone() })
     }
 
-    /// The variant a render of `model` with `options` under `lights` uses.
-    pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool) -> Variant {
-        Variant { flyaways: model.has_flyaways, shadows, lights: lights as u32 }
+    /// The variant a render of `model` with `options` under `lights` uses: the flyaway
+    /// march only where the model has flyaways and the options want them.
+    pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool, options: &CpuRenderOptions) -> Variant {
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32 }
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
@@ -202,12 +203,12 @@ impl HybridPass {
         if mesh.indices.is_empty() || mesh.vertices.is_empty() {
             return Err(VkError::Invalid("mesh has no triangles".into()).into());
         }
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows));
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
         let dev = &self.device;
-        let param_buf = self.params_buffer(camera, lights, options)?;
+        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options)?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.push(Resource::Buffer(&param_buf));
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf)]);
         let set = DescriptorSet::new(dev, &self.mesh_set_layout, &resources)?;
         let vertices = Buffer::with_data(dev, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?;
         let indices = Buffer::with_data(dev, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?;
@@ -239,8 +240,8 @@ impl HybridPass {
         Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant })
     }
 
-    /// The frame's parameters in a host-visible buffer.
-    fn params_buffer(&self, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<Buffer, GpuRenderError> {
+    /// The frame's parameters and its edit mask, in host-visible buffers.
+    fn params_buffers(&self, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<(Buffer, Buffer), GpuRenderError> {
         let (level_mode, fixed_level, level_bias) = match options.level {
             LevelChoice::Auto { bias } => (LEVEL_AUTO, 0, bias),
             LevelChoice::Nearest { bias } => (LEVEL_NEAREST, 0, bias),
@@ -250,6 +251,7 @@ impl HybridPass {
         for (g, l) in gpu_lights.iter_mut().zip(lights) {
             *g = GpuLight::new(l);
         }
+        let e = &options.edits;
         let params = GpuRenderParams {
             camera: GpuCamera::new(camera),
             background: options.background.extend(0.0).to_array(),
@@ -261,11 +263,18 @@ impl HybridPass {
             fixed_level,
             level_bias,
             pad: 0,
+            edit_tint: e.tint.extend(0.0).to_array(),
+            edit_roughness: e.roughness_scale,
+            edit_rotation: e.tangent_rotation,
+            mask_dims: e.mask.as_ref().map_or([0, 0], |m| [m.width, m.height]),
             lights: gpu_lights,
         };
         let buf = Buffer::new(&self.device, "hybrid params", size_of::<GpuRenderParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         buf.write_mapped(bytemuck::bytes_of(&params))?;
-        Ok(buf)
+        let mask: &[f32] = e.mask.as_ref().map_or(&[0.0][..], |m| &m.values);
+        let mask_buf = Buffer::new(&self.device, "edit mask", (mask.len() * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
+        mask_buf.write_mapped(bytemuck::cast_slice(mask))?;
+        Ok((buf, mask_buf))
     }
 
     /// Renders `model` seen by `camera` under `lights` with `options` (the CPU
@@ -279,17 +288,17 @@ impl HybridPass {
         if options.periodic != model.periodic {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows));
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
-        let param_buf = self.params_buffer(camera, lights, options)?;
+        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options)?;
         let (w, h) = (camera.width, camera.height);
         // Device-local: on a discrete GPU the shader must not write across the bus.
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;
         let stats = Buffer::new(dev, "hybrid stats", (STAT_WORDS * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         stats.write_mapped(&[0u8; STAT_WORDS * 4])?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats)]);
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats)]);
         let set = DescriptorSet::new(dev, &self.set_layout, &resources)?;
         let timestamps = Timestamps::new(dev, 2)?;
         dev.record_and_run("hybrid pass", |rec| {

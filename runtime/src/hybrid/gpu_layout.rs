@@ -297,7 +297,8 @@ impl GpuLight {
     }
 }
 
-/// One frame's camera, lights and options (binding 7). 384 bytes.
+/// One frame's camera, lights, options and edits (binding 7; the edit mask is binding 8,
+/// one f32 per mask pixel as `cpu::EditMask` stores them). 416 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuRenderParams {
@@ -312,8 +313,14 @@ pub struct GpuRenderParams {
     pub fixed_level: u32,
     pub level_bias: f32,
     pub pad: u32,
+    /// Edits (`cpu::edits`): tint (rgb), then the width scale, the tangent rotation
+    /// (radians) and the mask's size (0×0: no mask, edits everywhere).
+    pub edit_tint: [f32; 4],
+    pub edit_roughness: f32,
+    pub edit_rotation: f32,
+    pub mask_dims: [u32; 2],
     pub lights: [GpuLight; GPU_MAX_LIGHTS],
 }
 
 const _: () = assert!(size_of::<GpuCamera>() == 80);
-const _: () = assert!(size_of::<GpuRenderParams>() == 384);
+const _: () = assert!(size_of::<GpuRenderParams>() == 416);

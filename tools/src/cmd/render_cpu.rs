@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, ShadowMode, render_with_progress};
+use fabric_runtime::cpu::{CpuRenderOptions, EditMask, Edits, LevelChoice, ShadowMode, render_with_progress};
 use fabric_runtime::hybrid::format::read_file;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -34,6 +34,22 @@ pub struct CpuRenderFlags {
     /// Height-field traversal steps per ray before giving up.
     #[arg(long, default_value_t = 4096)]
     pub max_steps: u32,
+    /// Skip the flyaway fibers (the surface alone).
+    #[arg(long)]
+    pub no_flyaways: bool,
+    /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
+    #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
+    pub tint: glam::Vec3,
+    /// Edit: multiply every lobe's widths β and γ (> 1: rougher, < 1: shinier).
+    #[arg(long, default_value_t = 1.0)]
+    pub roughness_scale: f32,
+    /// Edit: rotate the surface's fiber tangents about their normals (degrees).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub tangent_rotation: f32,
+    /// Apply the edits only where this grey image is bright (PNG or EXR over one tile
+    /// seen from above, row 0 at +y; value = its red channel, 0..1).
+    #[arg(long)]
+    pub edit_mask: Option<std::path::PathBuf>,
 }
 
 /// `--level auto` or `--level N`.
@@ -55,8 +71,18 @@ fn parse_level(s: &str) -> Result<LevelFlag, String> {
 }
 
 impl CpuRenderFlags {
-    pub fn options(&self) -> CpuRenderOptions {
-        CpuRenderOptions {
+    pub fn options(&self) -> Result<CpuRenderOptions> {
+        let mask = match &self.edit_mask {
+            Some(path) => {
+                let img = fabric_runtime::image::Image::read(path, 1.0).with_context(|| format!("cannot read the edit mask {}", path.display()))?;
+                let mask = EditMask::new(img.width, img.height, img.pixels.iter().map(|p| p.x).collect()).map_err(anyhow::Error::msg)?;
+                Some(std::sync::Arc::new(mask))
+            }
+            None => None,
+        };
+        let edits = Edits { tint: self.tint, roughness_scale: self.roughness_scale, tangent_rotation: self.tangent_rotation.to_radians(), mask };
+        edits.validate().map_err(|e| anyhow::anyhow!("invalid edit: {e}"))?;
+        Ok(CpuRenderOptions {
             level: match self.level {
                 LevelFlag::Auto => LevelChoice::Auto { bias: self.level_bias },
                 LevelFlag::Nearest => LevelChoice::Nearest { bias: self.level_bias },
@@ -70,8 +96,10 @@ impl CpuRenderFlags {
             },
             supersampling: self.supersample,
             max_steps: self.max_steps,
+            flyaways: !self.no_flyaways,
+            edits,
             ..Default::default()
-        }
+        })
     }
 }
 
@@ -83,7 +111,7 @@ pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &O
     // from the top plane down through the depth range, i.e. the source volume's box.
     let camera = camera.camera(model.bounds())?;
     let light = light.light()?;
-    let options = flags.options();
+    let options = flags.options()?;
     if options.shadows == ShadowMode::FromModel {
         println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
     } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {
@@ -130,13 +158,17 @@ mod tests {
         let camera = CameraArgs { view_angles: Some((30.0, -90.0)), size: (32, 24), up: glam::Vec3::Z, ..Default::default() };
         let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
         let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
-        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096 };
+        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
         run(&model, &camera, &light, &output, &flags).unwrap();
         let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
         assert_eq!((image.width, image.height), (32, 24));
         assert!(image.mean() > 0.0);
         let err = run(&model, &camera, &light, &output, &CpuRenderFlags { level: LevelFlag::Fixed(9), ..flags.clone() }).unwrap_err();
         assert!(format!("{err:#}").contains("level 9 does not exist"), "{err:#}");
+        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { roughness_scale: -1.0, ..flags.clone() }).unwrap_err();
+        assert!(format!("{err:#}").contains("roughness scale"), "{err:#}");
+        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { edit_mask: Some(dir.join("no-mask.png")), ..flags.clone() }).unwrap_err();
+        assert!(format!("{err:#}").contains("edit mask"), "{err:#}");
         let err = run(&dir.join("missing.hyb"), &camera, &light, &output, &flags).unwrap_err();
         assert!(format!("{err:#}").contains("missing.hyb"), "{err:#}");
         assert_eq!(parse_level("auto"), Ok(LevelFlag::Auto));

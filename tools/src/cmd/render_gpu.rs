@@ -29,7 +29,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
     let mesh = mesh.map(Mesh::by_name).transpose()?;
     let camera = camera.camera(mesh.as_ref().map_or(model.bounds(), |m| m.bounds()))?;
     let light = light.light()?;
-    let mut options = flags.options();
+    let mut options = flags.options()?;
     if mesh.is_some() {
         // On a mesh the tile repeats over the UVs.
         options.periodic = true;
