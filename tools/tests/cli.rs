@@ -105,6 +105,31 @@ fn the_window_presents_what_offscreen_rendering_renders() {
 }
 
 #[test]
+fn the_window_draws_a_hybrid_model_as_offscreen_rendering_does() {
+    let x = Xvfb::start();
+    let model = tmp("view-synthetic.hyb");
+    fabric_runtime::hybrid::format::write_file(&fabric_runtime::hybrid::examples::synthetic_model(64, 7), &model).unwrap();
+    let flags = ["--mesh", "plane", "--uv-scale", "3", "--size", "160x120", "--view-angles", "40,-60", "--light-angles", "30,120", "--roughness-scale", "1.5", "--tangent-rotation", "30"];
+    let shot = tmp("view-hybrid.exr");
+    let o = fabric().arg("view").arg(&model).args(["--frames", "3"]).args(flags).arg("--screenshot").arg(&shot).env("DISPLAY", &x.1).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "fabric view MODEL failed: {stdout}\n{stderr}");
+    assert!(stdout.contains("variant: flyaways marched"), "{stdout}");
+    let offscreen = tmp("offscreen-hybrid.exr");
+    let o = fabric().arg("render").arg(&model).args(flags).arg("--out").arg(&offscreen).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = fabric_runtime::image::Image::read(&shot, 1.0).unwrap();
+    let b = fabric_runtime::image::Image::read(&offscreen, 1.0).unwrap();
+    assert!(b.mean() > 1e-4, "the fabric is lit");
+    // The same pass, light and edits; the window's camera went through the orbit's
+    // spherical coordinates and back (rounding moves the odd hit across a texel edge:
+    // measured 2.6e-3), an edit left out would differ by > 5e-2.
+    let rmse = fabric_runtime::metrics::relative_rmse(&a, &b).unwrap();
+    assert!(rmse < 0.01, "window and offscreen frames differ: relative RMSE {rmse}");
+}
+
+#[test]
 fn view_without_a_display_is_a_clear_error() {
     let o = fabric().args(["view", "--frames", "1"]).env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").output().unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);

@@ -23,7 +23,7 @@ use crate::image::Image;
 use super::mesh_pass::depth_range;
 use super::target::{COLOR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
 use crate::scene::{Camera, Light, Mesh, Vertex};
-use crate::vk::{BindingKind, Buffer, ColorTarget, DescriptorSet, GraphicsDesc, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
+use crate::vk::{BindingKind, Buffer, ColorTarget, DescriptorSet, GraphicsDesc, Recorder, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
 
 /// Why a GPU render cannot run.
 #[derive(Debug, thiserror::Error)]
@@ -63,6 +63,27 @@ pub struct GpuHybridModel {
     pub bytes: u64,
     /// The model itself, for validation of each render.
     model: HybridModel,
+}
+
+/// A base mesh in GPU buffers, for the mesh pass.
+pub struct HybridMesh {
+    vertices: Buffer,
+    indices: Buffer,
+    index_count: u32,
+    pub triangles: usize,
+    pub bounds: crate::scene::Aabb,
+}
+
+/// One prepared frame of the mesh pass ([`HybridPass::prepare_mesh`]).
+pub struct MeshDraw {
+    pipeline: Arc<Pipeline>,
+    set: DescriptorSet,
+    _params: Buffer,
+    _mask: Buffer,
+    push: MeshPush,
+    background: Vec3,
+    pub variant: Variant,
+    pub levels: usize,
 }
 
 /// One rendered frame.
@@ -184,12 +205,25 @@ impl HybridPass {
         Ok(p)
     }
 
-    /// Renders `model` (uploaded periodic: the tile repeats) on `mesh`, `uv_scale`
-    /// repeats of the tile per UV unit, seen by `camera` under `lights`, one sample per
-    /// pixel (hybrid_mesh.frag states how the tile is mapped and where this differs
-    /// from [`HybridPass::render`]).
+    /// Uploads a base mesh for [`HybridPass::prepare_mesh`].
+    pub fn upload_mesh(&self, mesh: &Mesh) -> Result<HybridMesh, GpuRenderError> {
+        if mesh.indices.is_empty() || mesh.vertices.is_empty() {
+            return Err(VkError::Invalid("mesh has no triangles".into()).into());
+        }
+        Ok(HybridMesh {
+            vertices: Buffer::with_data(&self.device, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
+            indices: Buffer::with_data(&self.device, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            index_count: mesh.indices.len() as u32,
+            triangles: mesh.indices.len() / 3,
+            bounds: mesh.bounds(),
+        })
+    }
+
+    /// Everything one frame of `model` on `mesh` needs (`uv_scale` repeats of the tile
+    /// per UV unit, seen by `camera` under `lights`): validated, buffers written. Keep it
+    /// alive until the frame that records it has completed.
     #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
-    pub fn render_mesh(&self, model: &GpuHybridModel, mesh: &Mesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+    pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<MeshDraw, GpuRenderError> {
         let shadows = validate_render(&model.model, camera, lights, options)?;
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
@@ -200,35 +234,46 @@ impl HybridPass {
         if !(uv_scale.is_finite() && uv_scale.min_element() > 0.0) {
             return Err(CpuRenderError::Options(format!("UV scale {uv_scale} must be positive and finite")).into());
         }
-        if mesh.indices.is_empty() || mesh.vertices.is_empty() {
-            return Err(VkError::Invalid("mesh has no triangles".into()).into());
-        }
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
-        let dev = &self.device;
-        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options)?;
+        let (params, mask) = self.params_buffers(camera, lights, options)?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf)]);
-        let set = DescriptorSet::new(dev, &self.mesh_set_layout, &resources)?;
-        let vertices = Buffer::with_data(dev, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?;
-        let indices = Buffer::with_data(dev, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?;
-        let (near, far) = depth_range(camera, mesh.bounds());
+        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask)]);
+        let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
+        let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
-        let target = OffscreenTarget::new(dev, camera.width, camera.height)?;
-        let timestamps = Timestamps::new(dev, 2)?;
-        let bg = options.background;
-        dev.record_and_run("hybrid mesh pass", |rec| {
+        Ok(MeshDraw { pipeline, set, _params: params, _mask: mask, push, background: options.background, variant, levels: model.levels })
+    }
+
+    /// Records `draw` of `mesh` into `target` (attachments cleared to the background;
+    /// the color image is left in COLOR_ATTACHMENT_OPTIMAL).
+    pub fn record_mesh(&self, rec: &Recorder<'_>, target: &OffscreenTarget, mesh: &HybridMesh, draw: &MeshDraw) {
+        let bg = draw.background;
+        target.record_begin(rec);
+        rec.begin_rendering(&ColorTarget { image: &target.color, clear: [bg.x, bg.y, bg.z, 1.0] }, Some(&target.depth));
+        rec.bind_pipeline(&draw.pipeline);
+        rec.bind_sets(&draw.pipeline, &[&draw.set]);
+        rec.push_constants(&draw.pipeline, bytemuck::bytes_of(&draw.push));
+        rec.bind_vertex_buffer(&mesh.vertices);
+        rec.bind_index_buffer_u32(&mesh.indices);
+        rec.draw_indexed(mesh.index_count);
+        rec.end_rendering();
+    }
+
+    /// Renders `model` (uploaded periodic: the tile repeats) on `mesh`, `uv_scale`
+    /// repeats of the tile per UV unit, seen by `camera` under `lights`, one sample per
+    /// pixel (hybrid_mesh.frag states how the tile is mapped and where this differs
+    /// from [`HybridPass::render`]).
+    #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
+    pub fn render_mesh(&self, model: &GpuHybridModel, mesh: &Mesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+        let gpu_mesh = self.upload_mesh(mesh)?;
+        let draw = self.prepare_mesh(model, &gpu_mesh, uv_scale, camera, lights, options, variant)?;
+        let target = OffscreenTarget::new(&self.device, camera.width, camera.height)?;
+        let timestamps = Timestamps::new(&self.device, 2)?;
+        self.device.record_and_run("hybrid mesh pass", |rec| {
             rec.reset_timestamps(&timestamps);
             rec.timestamp(&timestamps, 0);
-            target.record_begin(rec);
-            rec.begin_rendering(&ColorTarget { image: &target.color, clear: [bg.x, bg.y, bg.z, 1.0] }, Some(&target.depth));
-            rec.bind_pipeline(&pipeline);
-            rec.bind_sets(&pipeline, &[&set]);
-            rec.push_constants(&pipeline, bytemuck::bytes_of(&push));
-            rec.bind_vertex_buffer(&vertices);
-            rec.bind_index_buffer_u32(&indices);
-            rec.draw_indexed(mesh.indices.len() as u32);
-            rec.end_rendering();
+            self.record_mesh(rec, &target, &gpu_mesh, &draw);
             rec.timestamp(&timestamps, 1);
             target.record_readback(rec);
         })?;
@@ -237,7 +282,7 @@ impl HybridPass {
             return Err(GpuRenderError::NonFinite { count: image.pixels.iter().filter(|p| !p.is_finite()).count() as u32, x, y });
         }
         let stats = RenderStats { pixels: camera.width as u64 * camera.height as u64, level_pixels: vec![0; model.levels], ..Default::default() };
-        Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant })
+        Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant: draw.variant })
     }
 
     /// The frame's parameters and its edit mask, in host-visible buffers.

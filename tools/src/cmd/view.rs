@@ -1,20 +1,28 @@
 //! `fabric view`: the GPU renderer in a window (winit), with an orbit camera and live
-//! edits of the light and exposure. `--frames N` closes after N frames (for tests and
-//! scripted screenshots); `--screenshot PATH` saves the last frame's linear image.
+//! edits. Without a model it draws the base mesh scene; with `MODEL.hyb` it draws the
+//! hybrid fabric tiled over the mesh (`--mesh`, default plane; `--uv-scale`) and lets
+//! the appearance be edited live, without re-baking, with the same edits as the flags
+//! of `fabric render`. `--frames N` closes after N frames (tests, scripted
+//! screenshots); `--screenshot PATH` saves the last frame's linear image. The frame
+//! loop itself (swapchain, offscreen target, tonemap) is `fabric_runtime::gpu::FrameLoop`.
 //!
 //! Controls: left-drag orbits the camera, wheel zooms, right-drag moves the light,
-//! `+`/`-` change the exposure, Esc or closing the window quits.
+//! `+`/`-` exposure, Esc or closing the window quits. With a model: `r`/`R` roughness
+//! ×1.25/÷1.25, `[`/`]` tangent rotation ∓15°, `t` cycles the tint, `f` flyaways
+//! on/off, `b`/`v` level bias ±0.5, `m` the edit mask on/off, `0` resets the edits. The
+//! window title shows the GPU frame time and the edits.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
-use fabric_runtime::gpu::tonemap::DisplayImage;
-use fabric_runtime::gpu::{GpuMesh, MeshFrame, MeshPass, OffscreenTarget, TonemapPass};
+use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice};
+use fabric_runtime::gpu::{FrameLoop, HybridPass, MeshPass, ViewContent};
+use fabric_runtime::hybrid::format::read_file;
 use fabric_runtime::scene::{Camera, Light, Mesh};
 use fabric_runtime::vk::swapchain::{required_device_extensions, required_instance_extensions};
-use fabric_runtime::vk::{Acquired, Device, DeviceOptions, InstanceOptions, Surface, Swapchain, Timestamps, vk};
+use fabric_runtime::vk::{Device, DeviceOptions, InstanceOptions, Surface};
 use glam::Vec3;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -24,10 +32,13 @@ use winit::keyboard::{Key, NamedKey};
 use winit::raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use winit::window::{Window, WindowId};
 
+use super::render_cpu::CpuRenderFlags;
 use crate::args::{CameraArgs, LightArgs, MeshSceneArgs};
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
+    /// A hybrid model (.hyb) to draw on the mesh; without it the base mesh scene.
+    pub model: Option<PathBuf>,
     #[command(flatten)]
     pub scene: MeshSceneArgs,
     /// Exposure of the sRGB display mapping.
@@ -43,6 +54,8 @@ pub struct ViewArgs {
     pub camera: CameraArgs,
     #[command(flatten)]
     pub light: LightArgs,
+    #[command(flatten)]
+    pub render: CpuRenderFlags,
 }
 
 /// Spherical coordinates of the camera around its target.
@@ -70,28 +83,23 @@ impl Orbit {
     }
 }
 
-/// Everything that lives while the window is open. Fields drop in order: GPU
-/// resources, then the swapchain, the surface, the device and last the window the
-/// surface was made for.
+/// Tints `t` cycles through.
+const TINTS: [Vec3; 4] = [Vec3::ONE, Vec3::new(1.0, 0.55, 0.55), Vec3::new(0.55, 0.75, 1.0), Vec3::new(1.0, 0.85, 0.45)];
+
+/// The window and its frame loop. The frame loop drops first (it owns the surface
+/// made for the window).
 struct Viewer {
-    tonemap: TonemapPass,
-    target: OffscreenTarget,
-    frame: MeshFrame,
-    gpu_mesh: GpuMesh,
-    pass: MeshPass,
-    timestamps: Timestamps,
-    swapchain: Swapchain,
-    surface: Arc<Surface>,
-    device: Arc<Device>,
+    frame_loop: FrameLoop,
     window: Window,
     camera: Camera,
     orbit: Orbit,
     light: Light,
     exposure: f32,
-    base_color: Vec3,
-    frames: u32,
-    gpu_ms: f64,
-    resized: bool,
+    /// Hybrid content: the options and edits drawn with, the tint index, the mask.
+    options: CpuRenderOptions,
+    tint: usize,
+    mask: Option<Arc<fabric_runtime::cpu::EditMask>>,
+    hybrid: bool,
 }
 
 impl Viewer {
@@ -108,106 +116,94 @@ impl Viewer {
         })
         .context("cannot open a Vulkan device")?;
         let surface = Arc::new(Surface::new(device.instance(), display, window.window_handle().context("window handle")?.as_raw())?);
+        let mut options = args.render.options()?;
+        options.periodic = true;
+        let content = match &args.model {
+            Some(path) => {
+                let model = read_file(path)?;
+                let pass = HybridPass::new(&device)?;
+                let gpu_model = pass.upload(&model, true).with_context(|| format!("cannot upload {}", path.display()))?;
+                let gpu_mesh = pass.upload_mesh(mesh)?;
+                ViewContent::Hybrid { pass, model: gpu_model, mesh: gpu_mesh, uv_scale: args.scene.uv_scale, draw: None }
+            }
+            None => {
+                let pass = MeshPass::new(&device)?;
+                let gpu_mesh = pass.upload(mesh)?;
+                let frame = pass.frame_resources()?;
+                ViewContent::Mesh { pass, mesh: gpu_mesh, frame, base_color: args.scene.base_color }
+            }
+        };
         let size = window.inner_size();
-        let swapchain = Swapchain::new(&device, &surface, size.width.max(1), size.height.max(1))?;
+        let frame_loop = FrameLoop::new(&device, surface, size.width, size.height, content)?;
         let mut camera = args.camera.camera(mesh.bounds())?;
-        camera.width = swapchain.extent.width;
-        camera.height = swapchain.extent.height;
+        (camera.width, camera.height) = frame_loop.extent();
         let orbit = Orbit::from_camera(&camera);
-        let pass = MeshPass::new(&device)?;
-        let gpu_mesh = pass.upload(mesh)?;
-        let frame = pass.frame_resources()?;
-        let target = OffscreenTarget::new(&device, camera.width, camera.height)?;
-        let tonemap = TonemapPass::new(&device, &target, swapchain.format, swapchain.is_srgb())?;
-        let timestamps = Timestamps::new(&device, 2)?;
-        println!("device: {} ({}); window {}x{}, swapchain {:?}", device.info().name, device.info().kind, camera.width, camera.height, swapchain.format);
-        Ok(Viewer {
-            tonemap,
-            target,
-            frame,
-            gpu_mesh,
-            pass,
-            timestamps,
-            swapchain,
-            surface,
-            device,
-            window,
-            camera,
-            orbit,
-            light: args.light.light()?,
-            exposure: args.exposure,
-            base_color: args.scene.base_color,
-            frames: 0,
-            gpu_ms: 0.0,
-            resized: false,
-        })
-    }
-
-    /// Rebuilds the size-dependent objects for the window's current size.
-    fn recreate(&mut self) -> Result<()> {
-        let size = self.window.inner_size();
-        if size.width == 0 || size.height == 0 {
-            return Ok(()); // minimized: keep the old swapchain until we have a size
-        }
-        self.device.wait_idle()?;
-        // Drop the old swapchain before making the new one for the same surface.
-        let placeholder_target = OffscreenTarget::new(&self.device, 1, 1)?;
-        self.tonemap = TonemapPass::new(&self.device, &placeholder_target, self.swapchain.format, self.swapchain.is_srgb())?;
-        self.target = placeholder_target;
-        self.swapchain = Swapchain::new(&self.device, &self.surface, size.width, size.height)?;
-        self.camera.width = self.swapchain.extent.width;
-        self.camera.height = self.swapchain.extent.height;
-        self.target = OffscreenTarget::new(&self.device, self.camera.width, self.camera.height)?;
-        self.tonemap = TonemapPass::new(&self.device, &self.target, self.swapchain.format, self.swapchain.is_srgb())?;
-        self.resized = false;
-        Ok(())
+        println!("device: {} ({}); window {}x{}, swapchain {:?}", device.info().name, device.info().kind, camera.width, camera.height, frame_loop.swapchain_format());
+        let mask = options.edits.mask.clone();
+        Ok(Viewer { frame_loop, window, camera, orbit, light: args.light.light()?, exposure: args.exposure, options, tint: 0, mask, hybrid: args.model.is_some() })
     }
 
     fn draw(&mut self) -> Result<()> {
-        if self.resized {
-            self.recreate()?;
-        }
-        let index = match self.swapchain.acquire()? {
-            Acquired::Image(i) => i,
-            Acquired::OutOfDate => {
-                self.resized = true;
-                return Ok(());
-            }
-        };
-        if self.frames > 0 {
-            self.gpu_ms = self.timestamps.elapsed_ms(0, 1)?;
-        }
         self.orbit.apply(&mut self.camera);
-        self.pass.update(&self.frame, &self.gpu_mesh, &self.camera, &self.light, self.base_color)?;
-        let (w, h) = (self.swapchain.extent.width, self.swapchain.extent.height);
-        let presented = self.swapchain.submit_and_present(index, |rec, image, view| {
-            rec.reset_timestamps(&self.timestamps);
-            rec.timestamp(&self.timestamps, 0);
-            self.pass.record(rec, &self.target, &self.gpu_mesh, &self.frame);
-            rec.timestamp(&self.timestamps, 1);
-            self.tonemap.record(rec, &self.target, &DisplayImage { image, view, width: w, height: h }, self.exposure);
-        })?;
-        if !presented {
-            self.resized = true;
-        }
-        self.frames += 1;
-        self.window.set_title(&format!("fabric view — GPU {:.2} ms — exposure {:.2} — {}", self.gpu_ms, self.exposure, self.device.info().name));
+        let size = self.window.inner_size();
+        self.frame_loop.draw((size.width, size.height), &mut self.camera, &[self.light], &self.options, self.exposure)?;
+        let f = &self.frame_loop;
+        let edits = if self.hybrid {
+            let e = &self.options.edits;
+            let bias = match self.options.level {
+                LevelChoice::Auto { bias } | LevelChoice::Nearest { bias } => bias,
+                LevelChoice::Fixed(_) => 0.0,
+            };
+            format!(
+                " — roughness ×{:.2}, rotation {:.0}°, tint {:.2},{:.2},{:.2}{}, flyaways {}, level bias {:+.1}",
+                e.roughness_scale,
+                e.tangent_rotation.to_degrees(),
+                e.tint.x,
+                e.tint.y,
+                e.tint.z,
+                if e.mask.is_some() { " (masked)" } else { "" },
+                if self.options.flyaways { "on" } else { "off" },
+                bias
+            )
+        } else {
+            String::new()
+        };
+        self.window.set_title(&format!("fabric view — GPU {:.2} ms — exposure {:.2}{edits} — {}", f.gpu_ms, self.exposure, f.device().info().name));
         Ok(())
     }
 
-    /// Reads the last frame's linear image back.
-    fn screenshot(&self) -> Result<fabric_runtime::image::Image> {
-        self.device.wait_idle()?;
-        self.device.record_and_run("screenshot", |rec| self.target.record_readback_from(rec, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL))?;
-        Ok(self.target.to_image()?)
-    }
-}
-
-impl Drop for Viewer {
-    fn drop(&mut self) {
-        // The last frame may still be in flight: let it finish before the fields (its
-        // pipelines, images and buffers) are destroyed.
-        let _ = self.device.wait_idle();
+    /// A key that edits the hybrid model; true if it was one.
+    fn edit(&mut self, key: &str) -> bool {
+        if !self.hybrid {
+            return false;
+        }
+        let e = &mut self.options.edits;
+        match key {
+            "r" => e.roughness_scale = (e.roughness_scale * 1.25).min(64.0),
+            "R" => e.roughness_scale = (e.roughness_scale / 1.25).max(1.0 / 64.0),
+            "[" => e.tangent_rotation -= 15f32.to_radians(),
+            "]" => e.tangent_rotation += 15f32.to_radians(),
+            "t" => {
+                self.tint = (self.tint + 1) % TINTS.len();
+                e.tint = TINTS[self.tint];
+            }
+            "m" => e.mask = if e.mask.is_some() { None } else { self.mask.clone() },
+            "0" => {
+                *e = fabric_runtime::cpu::Edits { mask: self.mask.clone(), ..Default::default() };
+                self.tint = 0;
+            }
+            "f" => self.options.flyaways = !self.options.flyaways,
+            "b" | "v" => {
+                let step = if key == "b" { 0.5 } else { -0.5 };
+                self.options.level = match self.options.level {
+                    LevelChoice::Auto { bias } => LevelChoice::Auto { bias: bias + step },
+                    LevelChoice::Nearest { bias } => LevelChoice::Nearest { bias: bias + step },
+                    fixed => fixed,
+                };
+            }
+            _ => return false,
+        }
+        true
     }
 }
 
@@ -241,12 +237,12 @@ impl ApplicationHandler for App {
         let Some(v) = self.viewer.as_mut() else { return };
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
-            WindowEvent::Resized(_) => v.resized = true,
+            WindowEvent::Resized(_) => v.frame_loop.mark_resized(),
             WindowEvent::RedrawRequested => {
                 if let Err(e) = v.draw() {
                     return self.fail(event_loop, e);
                 }
-                if self.args.frames.is_some_and(|n| v.frames >= n) {
+                if self.args.frames.is_some_and(|n| v.frame_loop.frames >= n) {
                     event_loop.exit();
                 }
             }
@@ -283,6 +279,9 @@ impl ApplicationHandler for App {
                 Key::Named(NamedKey::Escape) => event_loop.exit(),
                 Key::Character(c) if c == "+" || c == "=" => v.exposure *= 1.25,
                 Key::Character(c) if c == "-" => v.exposure /= 1.25,
+                Key::Character(c) => {
+                    v.edit(c.as_str());
+                }
                 _ => {}
             },
             _ => {}
@@ -297,7 +296,8 @@ impl ApplicationHandler for App {
 }
 
 pub fn run(args: ViewArgs) -> Result<()> {
-    let mesh = Mesh::by_name(args.scene.mesh.as_deref().unwrap_or("sphere"))?;
+    let default_mesh = if args.model.is_some() { "plane" } else { "sphere" };
+    let mesh = Mesh::by_name(args.scene.mesh.as_deref().unwrap_or(default_mesh))?;
     let event_loop = EventLoop::new().map_err(|e| anyhow!("cannot connect to the window system ({e}); is DISPLAY set? for headless use: Xvfb :99 & DISPLAY=:99"))?;
     let mut app = App { args, mesh, viewer: None, error: None, dragging: None, cursor: None };
     event_loop.run_app(&mut app).context("window event loop")?;
@@ -306,11 +306,15 @@ pub fn run(args: ViewArgs) -> Result<()> {
     }
     let viewer = app.viewer.take().context("the window never opened")?;
     if let Some(path) = &app.args.screenshot {
-        viewer.screenshot()?.write(path, viewer.exposure)?;
+        viewer.frame_loop.screenshot()?.write(path, viewer.exposure)?;
         println!("wrote {}", path.display());
     }
-    println!("{} frames, last GPU frame time {:.3} ms on {}", viewer.frames, viewer.gpu_ms, viewer.device.info().name);
-    let device = viewer.device.clone();
+    let f = &viewer.frame_loop;
+    println!("{} frames, last GPU frame time {:.3} ms on {}", f.frames, f.gpu_ms, f.device().info().name);
+    if let Some(v) = f.variant {
+        println!("variant: flyaways {}, shadows {}, {} light(s)", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights);
+    }
+    let device = f.device().clone();
     drop(viewer); // destruction can report validation errors too
     let errors = device.validation_errors();
     if !errors.is_empty() {
