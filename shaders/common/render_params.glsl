@@ -58,5 +58,8 @@ GpuLight g_lights[GPU_MAX_LIGHTS];
 layout(constant_id = 0) const bool HAS_FLYAWAYS = true;  // any level has flyaway nodes
 layout(constant_id = 1) const bool SHADOWS = true;       // height-field shadow rays
 layout(constant_id = 2) const uint LIGHT_COUNT = 1u;     // lights[0 .. LIGHT_COUNT)
+// false: a plain normal-mapped surface with the same BRDFs, for comparisons — the hit is
+// where the ray enters the top plane (no height-field march, no parallax, no flyaways).
+layout(constant_id = 3) const bool RELIEF = true;
 
 #endif // RENDER_PARAMS_GLSL

@@ -69,7 +69,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         return out_;
     }
     uint steps = 0u;
-    HfTrace hit = hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps);
+    HfTrace hit = RELIEF ? hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps) : HfTrace(HF_HIT, t_top);
     out_.step_limited = hit.kind == HF_STEP_LIMIT;
     out_.steps = steps;
     out_.surface = hit.kind == HF_HIT;

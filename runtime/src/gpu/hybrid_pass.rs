@@ -41,7 +41,7 @@ pub enum GpuRenderError {
     NonFinite { count: u32, x: u32, y: u32 },
 }
 
-/// What the shader is specialized for (constant ids 0, 1, 2 of
+/// What the shader is specialized for (constant ids 0–3 of
 /// `shaders/common/render_params.glsl`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Variant {
@@ -51,6 +51,19 @@ pub struct Variant {
     pub shadows: bool,
     /// Lights looped over.
     pub lights: u32,
+    /// March the height field (false: a plain normal-mapped surface with the same
+    /// BRDFs at the top plane, the benchmark's baseline).
+    pub relief: bool,
+}
+
+impl Variant {
+    fn specialization(&self) -> Specialization {
+        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief)
+    }
+
+    fn name(&self, pass: &str) -> String {
+        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {})", self.flyaways, self.shadows, self.lights, self.relief)
+    }
 }
 
 /// A model in GPU buffers, laid out for a clamped or a periodic tile.
@@ -164,7 +177,7 @@ impl HybridPass {
     /// The variant a render of `model` with `options` under `lights` uses: the flyaway
     /// march only where the model has flyaways and the options want them.
     pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool, options: &CpuRenderOptions) -> Variant {
-        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32 }
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true }
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
@@ -172,9 +185,7 @@ impl HybridPass {
         if let Some(p) = cache.get(&v) {
             return Ok(p.clone());
         }
-        let spec = Specialization::new().bool(0, v.flyaways).bool(1, v.shadows).u32(2, v.lights);
-        let name = format!("hybrid (flyaways {}, shadows {}, {} lights)", v.flyaways, v.shadows, v.lights);
-        let p = Arc::new(Pipeline::compute(&self.device, &name, &self.module, &self.layout, &spec)?);
+        let p = Arc::new(Pipeline::compute(&self.device, &v.name("hybrid"), &self.module, &self.layout, &v.specialization())?);
         cache.insert(v, p.clone());
         Ok(p)
     }
@@ -184,7 +195,7 @@ impl HybridPass {
         if let Some(p) = cache.get(&v) {
             return Ok(p.clone());
         }
-        let name = format!("hybrid mesh (flyaways {}, shadows {}, {} lights)", v.flyaways, v.shadows, v.lights);
+        let name = v.name("hybrid mesh");
         let f = vk::Format::R32G32B32_SFLOAT;
         let p = Arc::new(Pipeline::graphics(
             &self.device,
@@ -198,7 +209,7 @@ impl HybridPass {
                 color_format: COLOR_FORMAT,
                 depth_format: Some(DEPTH_FORMAT),
                 cull: vk::CullModeFlags::NONE,
-                specialization: Specialization::new().bool(0, v.flyaways).bool(1, v.shadows).u32(2, v.lights),
+                specialization: v.specialization(),
             },
         )?);
         cache.insert(v, p.clone());

@@ -1,0 +1,65 @@
+//! Times the GPU renderer of hybrid models (prints; no pass/fail): frame time by
+//! resolution, the cost of the hybrid shader against a plain normal-mapped surface with
+//! the same BRDFs (the `relief` variant off), and the saving of each skip.
+//!
+//! `cargo run --release -p fabric-runtime --example bench_gpu_render [MODEL.hyb|N]`: a
+//! model file, or a synthetic N×N model (default 512). GPU time from timestamps, the
+//! median of 3 frames after a warm-up frame.
+
+use std::time::Instant;
+
+use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode};
+use fabric_runtime::gpu::{GpuHybridModel, HybridPass, Variant};
+use fabric_runtime::hybrid::examples::synthetic_model;
+use fabric_runtime::hybrid::format::read_file;
+use fabric_runtime::scene::{Camera, Light, Projection};
+use fabric_runtime::vk::{Device, DeviceOptions};
+use glam::Vec3;
+
+fn median_ms(pass: &HybridPass, g: &GpuHybridModel, cam: &Camera, lights: &[Light], opts: &CpuRenderOptions, v: Option<Variant>) -> (f64, Variant) {
+    let first = pass.render(g, cam, lights, opts, v).expect("render");
+    let mut t: Vec<f64> = (0..3).map(|_| pass.render(g, cam, lights, opts, v).expect("render").gpu_ms).collect();
+    t.sort_by(f64::total_cmp);
+    (t[1], first.variant)
+}
+
+fn main() {
+    let arg = std::env::args().nth(1).unwrap_or_else(|| "512".into());
+    let model = match arg.parse::<u32>() {
+        Ok(n) => synthetic_model(n, 1),
+        Err(_) => read_file(std::path::Path::new(&arg)).expect("a readable model file"),
+    };
+    let device = Device::new(&DeviceOptions::default()).expect("a Vulkan device");
+    println!("device: {} ({}, driver {})", device.info().name, device.info().kind, device.info().driver);
+    let pass = HybridPass::new(&device).unwrap();
+    let t = Instant::now();
+    let g = pass.upload(&model, true).unwrap();
+    println!("model {}x{}, {} levels, flyaways {}: {:.1} MB uploaded in {:.2?}", model.width(), model.height_px(), model.levels.len(), model.has_flyaways(), g.bytes as f64 / 1e6, t.elapsed());
+    let b = model.bounds();
+    let c = b.center();
+    let span = b.size().truncate().max_element();
+    let close = |w, h| Camera { origin: c + Vec3::new(0.05, -0.3, 0.35) * span, target: c, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: w, height: h };
+    let far = |w, h| Camera { origin: c + Vec3::new(0.0, -3.0, 2.0) * span, target: c, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: w, height: h };
+    let lights = [Light::directional(Vec3::new(-0.3, 0.4, 1.0), Vec3::splat(1.0)), Light::Point { position: c + Vec3::new(0.3, -0.2, 0.5) * span, intensity: Vec3::splat(0.5 * span * span) }];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    println!("\nframe time by resolution (close view, 1 light, shadows, all of the model):");
+    for (w, h) in [(640, 360), (1280, 720), (1920, 1080)] {
+        let (ms, v) = median_ms(&pass, &g, &close(w, h), &lights[..1], &opts, None);
+        println!("  {w}x{h}: {ms:.1} ms  ({v:?})");
+    }
+    println!("\nvariants at 640x360 (close view):");
+    let cam = close(640, 360);
+    let (full, v) = median_ms(&pass, &g, &cam, &lights[..1], &opts, None);
+    println!("  hybrid, 1 light, shadows: {full:.1} ms ({v:?})");
+    let plain = median_ms(&pass, &g, &cam, &lights[..1], &opts, Some(Variant { relief: false, flyaways: false, ..v })).0;
+    println!("  plain normal-mapped surface, same BRDFs: {plain:.1} ms (hybrid costs {:.2}x)", full / plain);
+    let nofly = median_ms(&pass, &g, &cam, &lights[..1], &opts, Some(Variant { flyaways: false, ..v })).0;
+    println!("  without the flyaway march: {nofly:.1} ms (flyaways add {:+.0}%)", 100.0 * (full / nofly - 1.0));
+    let noshadow = median_ms(&pass, &g, &cam, &lights[..1], &CpuRenderOptions { shadows: ShadowMode::Off, ..opts.clone() }, None).0;
+    println!("  without shadow rays: {noshadow:.1} ms (shadows add {:+.0}%)", 100.0 * (full / noshadow - 1.0));
+    let two = median_ms(&pass, &g, &cam, &lights, &opts, None).0;
+    println!("  two lights: {two:.1} ms ({:+.0}% for the second light)", 100.0 * (two / full - 1.0));
+    let farv = median_ms(&pass, &g, &far(640, 360), &lights[..1], &opts, None).0;
+    let far0 = median_ms(&pass, &g, &far(640, 360), &lights[..1], &CpuRenderOptions { level: fabric_runtime::cpu::LevelChoice::Fixed(0), ..opts.clone() }, None).0;
+    println!("  far view, automatic levels: {farv:.1} ms; level 0 forced: {far0:.1} ms");
+}
