@@ -1,14 +1,24 @@
 //! Compiles every GLSL stage in `shaders/` (*.vert, *.frag, *.comp) to SPIR-V with
 //! glslang (through shaderc), resolving `#include` against `shaders/`, and generates
 //! `shaders.rs` which embeds the SPIR-V and every source (for run-time compilation).
-//! A GLSL error fails the build with the compiler's file:line message.
+//! A GLSL error fails the build with the compiler's file:line message. Only with the
+//! `gpu` feature: without it there is nothing to compile.
 
 // Linked for its glslang/SPIRV-Tools link lines (see runtime/shaderc-link).
+#[cfg(feature = "gpu")]
 use shaderc_link as _;
+#[cfg(feature = "gpu")]
 use std::fmt::Write as _;
+#[cfg(feature = "gpu")]
 use std::path::{Path, PathBuf};
 
 fn main() {
+    #[cfg(feature = "gpu")]
+    compile_shaders();
+}
+
+#[cfg(feature = "gpu")]
+fn compile_shaders() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let shader_dir = manifest.join("../shaders").canonicalize().expect("shaders/ directory next to runtime/");
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
@@ -66,6 +76,7 @@ fn main() {
     std::fs::write(out.join("shaders.rs"), generated).expect("write shaders.rs");
 }
 
+#[cfg(feature = "gpu")]
 fn walk(dir: &Path) -> Vec<PathBuf> {
     let mut v = Vec::new();
     for e in std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())).flatten() {

@@ -3,6 +3,8 @@
 //! random and extreme inputs, `runtime/src/brdf` evaluates the same inputs, and the
 //! two agree to a stated tolerance. Validation is on; a validation error fails the test.
 
+#![cfg(feature = "gpu")]
+
 use std::path::Path;
 use std::sync::Arc;
 

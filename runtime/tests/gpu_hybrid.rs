@@ -4,6 +4,8 @@
 //! automatic, nearest and fixed levels, clamped and periodic tiles, flyaways, shadows,
 //! several lights; the variants that skip work; bad input.
 
+#![cfg(feature = "gpu")]
+
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render_with_stats};
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{HybridModel, examples};

@@ -3,6 +3,8 @@
 //! decorations (compiled here with debug names), equals Rust's `offset_of!`, and every
 //! array's stride is the Rust element's size. A member added on one side only fails too.
 
+#![cfg(feature = "gpu")]
+
 use std::collections::HashMap;
 use std::mem::offset_of;
 

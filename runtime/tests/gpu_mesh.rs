@@ -1,6 +1,8 @@
 //! The Vulkan layer and the mesh pass on the local driver (lavapipe in CI), with
 //! validation on: every test fails on a validation error it caused.
 
+#![cfg(feature = "gpu")]
+
 use std::sync::Arc;
 
 use fabric_runtime::gpu::MeshPass;
