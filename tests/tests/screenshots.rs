@@ -93,3 +93,29 @@ fn hybrid_model_on_its_tile_and_on_a_sphere() {
     check_golden("hybrid-synthetic-tile", &plane, 4.0, TOLERANCE).unwrap();
     check_golden("hybrid-synthetic-sphere", &sphere, 4.0, TOLERANCE).unwrap();
 }
+
+/// The baked presets (tests/goldens/models, made by tests/goldens/make_models.sh) drawn
+/// on their tile and on a sphere by the GPU renderer of hybrid models.
+#[test]
+fn baked_presets_on_their_tile_and_on_a_sphere() {
+    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode};
+    use fabric_runtime::gpu::HybridPass;
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models");
+    let light = Light::directional(direction_from_angles(40.0, 200.0), Vec3::splat(2.0));
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
+    for preset in ["plain", "twill", "satin", "silk", "felt"] {
+        let model = fabric_runtime::hybrid::format::read_file(&dir.join(format!("{preset}.hyb"))).unwrap();
+        let g = pass.upload(&model, true).unwrap();
+        let b = model.bounds();
+        let top = Vec3::new(b.center().x, b.center().y, b.max.z);
+        let tile_cam = Camera::orbit_orthographic(35.0, 20.0, top, b.size().length() + 1.0, 1.5 * b.size().x, 160, 160);
+        let tile = pass.render(&g, &tile_cam, &[light], &opts, None).unwrap().image;
+        let sphere_cam = Camera { origin: Vec3::new(0.0, -3.0, 1.5), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 160, height: 160 };
+        let sphere = pass.render_mesh(&g, &Mesh::sphere(1.0, 96, 48), glam::Vec2::new(8.0, 4.0), &sphere_cam, &[light], &opts, None).unwrap().image;
+        assert!(tile.mean() > 0.0 && sphere.mean() > 0.0, "{preset}: lit");
+        check_golden(&format!("hybrid-{preset}-tile"), &tile, 2.0, TOLERANCE).unwrap();
+        check_golden(&format!("hybrid-{preset}-sphere"), &sphere, 2.0, TOLERANCE).unwrap();
+    }
+}

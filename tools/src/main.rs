@@ -16,6 +16,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job on a built-in default: generate a twill, bake it, draw it against the
+    /// reference on the GPU; prints bake time, model size, error and frame time into out/.
+    Demo(cmd::demo::DemoArgs),
     /// Generate a procedural fabric volume (woven or felt) as a fabric directory.
     #[command(name = "gen")]
     Gen(cmd::generate::GenArgs),
@@ -53,6 +56,7 @@ fn main() -> std::process::ExitCode {
     restore_sigpipe();
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(a) => cmd::demo::run(a),
         Command::Gen(a) => cmd::generate::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Reference(a) => cmd::reference::run(a),

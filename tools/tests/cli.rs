@@ -229,3 +229,29 @@ fn prefilter_rebuilds_the_chain_and_refuses_bad_input() {
     let o = fabric().arg("prefilter").arg(tmp("missing.hyb")).arg("--out").arg(tmp("never.hyb")).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("missing.hyb"));
 }
+
+#[test]
+fn diff_thresholds_set_the_exit_code() {
+    use fabric_runtime::image::Image;
+    let a = Image::from_fn(48, 32, |x, y| glam::Vec3::new(x as f32 / 48.0, y as f32 / 32.0, 0.3));
+    let mut b = a.clone();
+    for x in 0..24 {
+        b.set(x, 10, glam::Vec3::ONE);
+    }
+    let (pa, pb, map) = (tmp("diff-a.exr"), tmp("diff-b.exr"), tmp("diff-map.png"));
+    a.write(&pa, 1.0).unwrap();
+    b.write(&pb, 1.0).unwrap();
+    let same = fabric().arg("diff").arg(&pa).arg(&pa).args(["--max-flip-mean", "0", "--max-rel-rmse", "0"]).output().unwrap();
+    assert!(same.status.success() && String::from_utf8_lossy(&same.stdout).contains("PASS"), "{}", String::from_utf8_lossy(&same.stderr));
+    let o = fabric().arg("diff").arg(&pb).arg(&pa).args(["--max-flip-mean", "0.001", "--max-flip-p95", "0.5", "--max-rel-rmse", "1.0", "--diff-image"]).arg(&map).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("beyond the thresholds") && stderr.contains("--max-flip-mean"), "{stderr}");
+    assert!(!stderr.contains("--max-rel-rmse 1"), "a threshold that holds is not reported: {stderr}");
+    assert!(map.exists(), "the difference image is written even when the check fails");
+    let o = fabric().arg("diff").arg(&pb).arg(&pa).args(["--json", "--max-rel-rmse", "1e-9"]).output().unwrap();
+    assert!(!o.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON on stdout");
+    assert_eq!(v["failures"].as_array().map(|f| f.len()), Some(1), "{v}");
+    let o = fabric().arg("diff").arg(&pa).arg(&pa).args(["--max-flip-mean", "nan"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--max-flip-mean"));
+}

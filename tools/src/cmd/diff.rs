@@ -1,7 +1,10 @@
 //! `fabric diff A B`: how far image A is from reference B (docs/DESIGN.md §9):
 //! relative RMSE over linear RGB, mean per-pixel relative difference, relative
 //! difference of the image means, and FLIP on the sRGB(clamp(exposure·L)) 8-bit images.
-//! Optionally writes the FLIP error map in false colour (magma).
+//! Optionally writes the FLIP error map in false colour (magma). With thresholds
+//! (`--max-flip-mean`, `--max-flip-p95`, `--max-rel-rmse`) it is a screenshot-regression
+//! check: the metrics are printed as always, then one line per exceeded threshold, and
+//! the exit code is non-zero if any is exceeded (docs in README, "Screenshot regression").
 
 use std::path::PathBuf;
 
@@ -25,6 +28,15 @@ pub struct DiffArgs {
     /// Write the FLIP error map (magma colour scale) as a PNG.
     #[arg(long)]
     pub diff_image: Option<PathBuf>,
+    /// Fail (non-zero exit) if the mean FLIP exceeds this.
+    #[arg(long)]
+    pub max_flip_mean: Option<f32>,
+    /// Fail if the 95th percentile of the per-pixel FLIP exceeds this.
+    #[arg(long)]
+    pub max_flip_p95: Option<f32>,
+    /// Fail if the relative RMSE exceeds this.
+    #[arg(long)]
+    pub max_rel_rmse: Option<f64>,
 }
 
 #[derive(serde::Serialize)]
@@ -42,11 +54,20 @@ struct Report {
     flip_p95: f32,
     flip_max: f32,
     exposure: f32,
+    /// Thresholds exceeded (empty: passed, or none given).
+    failures: Vec<String>,
 }
 
 pub fn run(args: DiffArgs) -> Result<()> {
     if !(args.exposure.is_finite() && args.exposure > 0.0) {
         bail!("--exposure must be a positive finite number, got {}", args.exposure);
+    }
+    for (flag, v) in [("--max-flip-mean", args.max_flip_mean.map(f64::from)), ("--max-flip-p95", args.max_flip_p95.map(f64::from)), ("--max-rel-rmse", args.max_rel_rmse)] {
+        if let Some(v) = v
+            && !(v.is_finite() && v >= 0.0)
+        {
+            bail!("{flag} must be a non-negative finite number, got {v}");
+        }
     }
     let a = Image::read(&args.a, args.exposure).with_context(|| format!("cannot read test image {}", args.a.display()))?;
     let b = Image::read(&args.b, args.exposure).with_context(|| format!("cannot read reference image {}", args.b.display()))?;
@@ -66,7 +87,24 @@ pub fn run(args: DiffArgs) -> Result<()> {
         flip_p95: flip.p95,
         flip_max: flip.max,
         exposure: args.exposure,
+        failures: Vec::new(),
     };
+    let mut report = report;
+    if let Some(m) = args.max_flip_mean
+        && report.flip_mean > m
+    {
+        report.failures.push(format!("FLIP mean {:.5} > --max-flip-mean {m}", report.flip_mean));
+    }
+    if let Some(m) = args.max_flip_p95
+        && report.flip_p95 > m
+    {
+        report.failures.push(format!("FLIP p95 {:.5} > --max-flip-p95 {m}", report.flip_p95));
+    }
+    if let Some(m) = args.max_rel_rmse
+        && report.relative_rmse > m
+    {
+        report.failures.push(format!("relative RMSE {:.6} > --max-rel-rmse {m}", report.relative_rmse));
+    }
     if let Some(path) = &args.diff_image {
         if path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()) != Some("png".into()) {
             bail!("--diff-image {}: the error map is written as PNG; use a .png name", path.display());
@@ -86,6 +124,13 @@ pub fn run(args: DiffArgs) -> Result<()> {
         if let Some(p) = &args.diff_image {
             println!("wrote {}", p.display());
         }
+    }
+    let thresholds = args.max_flip_mean.is_some() || args.max_flip_p95.is_some() || args.max_rel_rmse.is_some();
+    if !report.failures.is_empty() {
+        bail!("{} differs from {} beyond the thresholds: {}", report.test, report.reference, report.failures.join("; "));
+    }
+    if thresholds {
+        println!("PASS: within the thresholds");
     }
     Ok(())
 }

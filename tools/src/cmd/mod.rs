@@ -1,6 +1,7 @@
 //! One module per `fabric` subcommand.
 
 pub mod bake;
+pub mod demo;
 pub mod devices;
 pub mod diff;
 pub mod generate;
