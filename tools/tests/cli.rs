@@ -255,3 +255,24 @@ fn diff_thresholds_set_the_exit_code() {
     let o = fabric().arg("diff").arg(&pa).arg(&pa).args(["--max-flip-mean", "nan"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--max-flip-mean"));
 }
+
+#[test]
+fn the_demo_runs_the_main_job_end_to_end() {
+    // A small volume and few samples (the default is 96x96x24 at 128 spp, ~3 minutes).
+    let out = tmp("demo");
+    let _ = std::fs::remove_dir_all(&out);
+    let o = fabric().args(["demo", "--size", "32x32x8", "--spp", "4", "--out"]).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    for want in ["bake:", "MB from a", "held-out views: relative RMSE median", "demo view", "frame time"] {
+        assert!(report.contains(want), "report.md lacks '{want}':\n{report}");
+    }
+    for file in ["twill.hyb", "twill-reference.exr", "twill-reference-vs-hybrid.png", "twill-hybrid.exr", "twill-bake.json"] {
+        assert!(out.join(file).exists(), "{file} missing");
+    }
+    let o = fabric().args(["demo", "--spp", "0", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--spp"));
+    let o = fabric().args(["demo", "--size", "0x0x0", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("panicked"));
+}
