@@ -239,3 +239,50 @@ fn edits_mean_what_they_say_in_both_twins() {
     assert!(relative_rmse(&frame.image, &render(&m, &cam, &lights, &no_fly).unwrap()).unwrap() < 1e-3);
     assert!(relative_rmse(&frame.image, &plain).unwrap() > 1e-3, "the synthetic model's flyaways are visible");
 }
+
+#[test]
+fn extreme_cameras_and_parameters_give_finite_images_in_both_twins() {
+    use fabric_runtime::brdf::{ClothLobe, ClothParams};
+    use fabric_runtime::cpu::render;
+    use fabric_runtime::hybrid::FlyawayInput;
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    // Parameters at the ends of their ranges, a steep relief, an opaque flyaway.
+    let params = ClothParams::new(
+        Vec3::splat(65504.0),
+        4.0,
+        1e4,
+        &[ClothLobe { k: Vec3::splat(65504.0), beta: 1e-3, gamma: 1e-3 }, ClothLobe { k: Vec3::ZERO, beta: 1e4, gamma: 0.0 }, ClothLobe { k: Vec3::ONE, beta: 1e-3, gamma: 1e4 }],
+    );
+    let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::new(-0.5, -0.5), size: glam::Vec2::ONE, top_z: 0.3, height_scale: 0.3, voxel_depth: 0.01 };
+    let mut m = examples::uniform_model(16, 16, 5, tile, |x, y| 0.15 + 0.14 * (40.0 * x).sin() * (37.0 * y).cos(), &params, Vec3::new(0.0, 0.0, -1.0), Vec3::Z).unwrap();
+    examples::add_flyaways(&mut m, 0, &[(1, 1, FlyawayInput { depth: 0, alpha: 1.0, tangent: Vec3::Z, param: 0 })], &params).unwrap();
+    let lights = [Light::directional(fabric_runtime::scene::direction_from_angles(89.9, 10.0), Vec3::splat(1e3)), Light::Point { position: Vec3::new(0.0, 0.0, 0.3), intensity: Vec3::ONE }];
+    let look = |origin: Vec3, target: Vec3| Camera { origin, target, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 60.0 }, width: 24, height: 24 };
+    let cameras = [
+        ("overhead", Camera::orbit_orthographic(0.0, 0.0, Vec3::new(0.0, 0.0, 0.3), 3.0, 1.5, 24, 24)),
+        ("grazing", Camera::orbit_orthographic(89.9, 45.0, Vec3::new(0.0, 0.0, 0.3), 3.0, 1.5, 24, 24)),
+        ("inside the slab", look(Vec3::new(0.1, 0.0, 0.2), Vec3::new(0.3, 0.2, 0.0))),
+        ("a hair above the top plane", look(Vec3::new(0.0, 0.0, 0.3 + 1e-6), Vec3::new(0.2, 0.1, 0.0))),
+        ("very far", look(Vec3::new(0.0, -1e5, 1e5), Vec3::ZERO)),
+        ("below, looking up", look(Vec3::new(0.0, -0.1, -1.0), Vec3::new(0.0, 0.0, 1.0))),
+    ];
+    for periodic in [false, true] {
+        let g = pass.upload(&m, periodic).unwrap();
+        for (name, cam) in &cameras {
+            let opts = CpuRenderOptions { periodic, shadows: ShadowMode::On, max_steps: 64, ..Default::default() };
+            let gpu = pass.render(&g, cam, &lights, &opts, None).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let cpu = render(&m, cam, &lights, &opts).unwrap_or_else(|e| panic!("{name}: {e}"));
+            for (what, img) in [("GPU", &gpu.image), ("CPU", &cpu)] {
+                assert!(img.first_non_finite().is_none() && img.pixels.iter().all(|p| p.min_element() >= 0.0), "{what}, {name}, periodic {periodic}: not finite");
+            }
+        }
+        if periodic {
+            let sphere = fabric_runtime::scene::Mesh::sphere(1.0, 32, 16);
+            for (name, cam) in &cameras {
+                let frame = pass.render_mesh(&g, &sphere, glam::Vec2::splat(4.0), cam, &lights, &CpuRenderOptions { periodic, ..Default::default() }, None).unwrap_or_else(|e| panic!("mesh, {name}: {e}"));
+                assert!(frame.image.first_non_finite().is_none(), "mesh, {name}: not finite");
+            }
+        }
+    }
+}
