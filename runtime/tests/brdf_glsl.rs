@@ -108,3 +108,51 @@ fn every_glsl_function_of_the_twin_exists_in_rust_and_back() {
     assert_eq!(glsl_fns, rust_fns, "same functions, same order");
 }
 
+
+/// `count` inputs in batches through the GLSL twin: every output finite, non-negative and
+/// within its input's bound: k_d + Σ k_j/(√(2π)·β), with β the lobe's width (bounded
+/// reading) or the narrowest the width reading allows (BETA_MIN), Fresnel and shadowing
+/// being at most 1 — as the Rust twin's million-input test checks on the CPU.
+fn bound_of(input: &BrdfEvalInput) -> f32 {
+    let p = input.params();
+    let width = input.reading == 1;
+    let kd = p.kd.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element();
+    let peak = |l: &fabric_runtime::brdf::ClothLobe| {
+        let beta = if width { BETA_MIN } else { l.beta.clamp(BETA_MIN, 1e4) };
+        l.k.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element() * 0.398_942_3 / beta
+    };
+    kd + p.lobes().iter().map(peak).sum::<f32>()
+}
+
+fn stress_gpu(count: usize, seed: u64) {
+    let device = device();
+    let batch = 131_072;
+    let mut done = 0;
+    let mut k = 0u64;
+    while done < count {
+        let n = batch.min(count - done);
+        let inputs = generate_inputs(n, seed.wrapping_add(k));
+        let gpu = evaluate_on_gpu(&device, &inputs);
+        for (i, (input, g)) in inputs.iter().zip(&gpu).enumerate() {
+            let bound = 1.0001 * bound_of(input);
+            for v in g.brdf.iter().chain(&g.lobe0).chain(&g.fiber) {
+                assert!(v.is_finite() && *v >= 0.0 && *v <= bound, "batch {k} input {i}: {v} outside [0, {bound}]: {input:?}");
+            }
+        }
+        done += n;
+        k += 1;
+    }
+}
+
+#[test]
+fn glsl_twin_is_finite_and_bounded_on_a_million_inputs() {
+    stress_gpu(1_000_000, 0x57e55);
+}
+
+/// The long run: `FABRIC_BRDF_STRESS=10000000 cargo test -p fabric-runtime --test brdf_glsl -- --ignored`.
+#[test]
+#[ignore]
+fn glsl_twin_stress_long() {
+    let n = std::env::var("FABRIC_BRDF_STRESS").ok().and_then(|v| v.parse().ok()).unwrap_or(10_000_000);
+    stress_gpu(n, 0x10_57e55);
+}
