@@ -59,6 +59,8 @@ fn main() {
     println!("  without shadow rays: {noshadow:.1} ms (shadows add {:+.0}%)", 100.0 * (full / noshadow - 1.0));
     let two = median_ms(&pass, &g, &cam, &lights, &opts, None).0;
     println!("  two lights: {two:.1} ms ({:+.0}% for the second light)", 100.0 * (two / full - 1.0));
+    let eight = median_ms(&pass, &g, &cam, &lights[..1], &opts, Some(Variant { lobes: 8, ..v })).0;
+    println!("  lobe loop compiled for 8 lobes instead of the model's {}: {eight:.1} ms", v.lobes);
     let farv = median_ms(&pass, &g, &far(640, 360), &lights[..1], &opts, None).0;
     let far0 = median_ms(&pass, &g, &far(640, 360), &lights[..1], &CpuRenderOptions { level: fabric_runtime::cpu::LevelChoice::Fixed(0), ..opts.clone() }, None).0;
     println!("  far view, automatic levels: {farv:.1} ms; level 0 forced: {far0:.1} ms");

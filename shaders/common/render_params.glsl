@@ -61,5 +61,7 @@ layout(constant_id = 2) const uint LIGHT_COUNT = 1u;     // lights[0 .. LIGHT_CO
 // false: a plain normal-mapped surface with the same BRDFs, for comparisons — the hit is
 // where the ray enters the top plane (no height-field march, no parallax, no flyaways).
 layout(constant_id = 3) const bool RELIEF = true;
+// The most lobes any BRDF of the model has (1..8): the lobe loop's compiled bound.
+layout(constant_id = 4) const uint LOBE_BOUND = 8u;
 
 #endif // RENDER_PARAMS_GLSL

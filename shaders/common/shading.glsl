@@ -54,7 +54,7 @@ vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint read
     rotate = rotate && e.tangent_rotation != 0.0;
     float eta = f16_value(h.y >> 16);
     float a = f16_value(h.z);
-    uint count = min((h.z >> 16) & 0xffu, uint(CLOTH_MAX_LOBES));
+    uint count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
     uint first = r.lobe_base + h.w;
     // Lobe 0's frame carries k_d (per-texel tables have at least one lobe).
     vec3 n0 = r.framed ? octahedral_decode(brdf_lobes[first].x) : r.frame.n;

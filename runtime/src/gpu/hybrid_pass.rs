@@ -54,15 +54,17 @@ pub struct Variant {
     /// March the height field (false: a plain normal-mapped surface with the same
     /// BRDFs at the top plane, the benchmark's baseline).
     pub relief: bool,
+    /// The lobe loop's bound: the most lobes of any BRDF in the model (1..=8).
+    pub lobes: u32,
 }
 
 impl Variant {
     fn specialization(&self) -> Specialization {
-        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief)
+        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8))
     }
 
     fn name(&self, pass: &str) -> String {
-        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {})", self.flyaways, self.shadows, self.lights, self.relief)
+        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes)", self.flyaways, self.shadows, self.lights, self.relief, self.lobes)
     }
 }
 
@@ -72,6 +74,8 @@ pub struct GpuHybridModel {
     pub periodic: bool,
     pub has_flyaways: bool,
     pub levels: usize,
+    /// The most lobes of any BRDF (surface or flyaway, any level).
+    pub max_lobes: u32,
     /// Bytes uploaded.
     pub bytes: u64,
     /// The model itself, for validation of each render.
@@ -171,13 +175,14 @@ impl HybridPass {
             bytes += data.len() as u64;
             buffers.push(Buffer::with_data(&self.device, name, &data, vk::BufferUsageFlags::STORAGE_BUFFER)?);
         }
-        Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), levels: model.levels.len(), bytes, model: model.clone() })
+        let max_lobes = layout.headers.iter().map(|h| h.lobe_count as u32).max().unwrap_or(1).max(1);
+        Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), levels: model.levels.len(), max_lobes, bytes, model: model.clone() })
     }
 
     /// The variant a render of `model` with `options` under `lights` uses: the flyaway
     /// march only where the model has flyaways and the options want them.
     pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool, options: &CpuRenderOptions) -> Variant {
-        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true }
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true, lobes: model.max_lobes }
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
