@@ -58,7 +58,7 @@ void main() {
     } else if (e.kind == 1u) {
         // heightfield.glsl: the march and the surface's depth
         uint steps = 0u;
-        HfTrace h = hf_trace(e.a.xyz, e.b.xyz, e.a.w, e.b.w, e.c.x, e.u.x, steps);
+        HfTrace h = hf_trace(e.a.xyz, e.b.xyz, e.a.w, e.b.w, e.c.x, e.u.x, steps, int(e.u.y));
         o.x = vec4(float(h.kind), h.t, float(steps), hf_depth_at(e.c.y, e.c.z));
     } else if (e.kind == 2u) {
         // heightfield.glsl: shadow rays

@@ -6,7 +6,7 @@
 
 #![cfg(feature = "gpu")]
 
-use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render_with_stats};
+use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{HybridModel, examples};
 use fabric_runtime::image::Image;
@@ -193,7 +193,7 @@ fn the_tile_on_a_plane_mesh_matches_the_tile_seen_directly() {
 
 #[test]
 fn edits_mean_what_they_say_in_both_twins() {
-    use fabric_runtime::cpu::{EditMask, Edits, render};
+    use fabric_runtime::cpu::{EditMask, Edits};
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
     let m = examples::synthetic_model(64, 7);
@@ -247,7 +247,7 @@ fn edits_mean_what_they_say_in_both_twins() {
 #[test]
 fn extreme_cameras_and_parameters_give_finite_images_in_both_twins() {
     use fabric_runtime::brdf::{ClothLobe, ClothParams};
-    use fabric_runtime::cpu::render;
+
     use fabric_runtime::hybrid::FlyawayInput;
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
@@ -289,4 +289,33 @@ fn extreme_cameras_and_parameters_give_finite_images_in_both_twins() {
             }
         }
     }
+}
+
+#[test]
+fn coarse_relief_takes_fewer_steps_far_away_at_a_small_error_in_both_twins() {
+    use fabric_runtime::cpu::render_with_stats;
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let m = examples::synthetic_model(128, 3);
+    let g = pass.upload(&m, true).unwrap();
+    let lights = [Light::directional(Vec3::new(0.3, -0.2, 1.0), Vec3::ONE)];
+    // Far: ~6 texels per pixel (levels 1-2); near: below a texel per pixel (level 0,
+    // where coarse relief is the exact march).
+    let far = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 3.0, 3.0, 64, 64);
+    let near = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 3.0, 0.4, 64, 64);
+    let exact = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let coarse = CpuRenderOptions { coarse_relief: true, ..exact.clone() };
+    let (e_img, e_stats) = render_with_stats(&m, &far, &lights, &exact).unwrap();
+    let (c_img, c_stats) = render_with_stats(&m, &far, &lights, &coarse).unwrap();
+    let gpu = pass.render(&g, &far, &lights, &coarse, None).unwrap();
+    let twin = relative_rmse(&gpu.image, &c_img).unwrap();
+    let error = relative_rmse(&c_img, &e_img).unwrap();
+    let (es, cs) = (e_stats.camera_steps as f64 / e_stats.pixels as f64, c_stats.camera_steps as f64 / c_stats.pixels as f64);
+    println!("coarse relief, far view: {cs:.1} steps/ray against {es:.1} exact; error against the exact march {error:.3}; GPU vs CPU {twin:.1e}; GPU steps/ray {:.1}", gpu.stats.camera_steps as f64 / gpu.stats.pixels as f64);
+    assert!(twin < 1e-3, "the twins differ by {twin}");
+    assert_eq!(gpu.stats.camera_steps, c_stats.camera_steps, "the same steps on both");
+    assert!(cs < 0.8 * es, "coarse relief should save steps far away: {cs} vs {es}");
+    assert!(error < 0.1, "and cost little accuracy there: {error}");
+    // Near (level 0) it is the exact march.
+    assert_eq!(render(&m, &near, &lights, &coarse).unwrap(), render(&m, &near, &lights, &exact).unwrap());
 }

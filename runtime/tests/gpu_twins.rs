@@ -116,6 +116,8 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                     let (o, d) = random_ray(&mut rng, model);
                     let steps = if k % 10 == 0 { 1 + (rng.next_u64() % 16) as u32 } else { 4096 };
                     e.u[0] = steps;
+                    // A quadtree floor on some rays (coarse relief).
+                    e.u[1] = if k % 3 == 1 { (rng.next_u64() % 5) as u32 } else { 0 };
                     if kind == 1 {
                         // From the top plane (as the renderer starts) or from the origin.
                         let t0 = if k % 4 == 0 { 0.0 } else { ((model.tile.top_z - o.z) / d.z).max(0.0) };
@@ -204,7 +206,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             1 => {
                 let (o, d) = (Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
                 let mut steps = 0;
-                let h = tracer.trace(&Ray::new(o, d), e.a[3], e.b[3], e.c[0], e.u[0], &mut steps);
+                let h = tracer.trace_to(&Ray::new(o, d), e.a[3], e.b[3], e.c[0], e.u[0], &mut steps, e.u[1] as usize);
                 let (kind, t) = match h {
                     HfTrace::Miss => (0.0, 0.0),
                     HfTrace::Hit(t) => (1.0, t),

@@ -168,7 +168,7 @@ bool hf_leaf_hit(HfRay r, ivec2 cell, float ta, float tb, float bias, out float 
 }
 
 // The quadtree traversal of one tile's leaves over [ta, tb].
-HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps) {
+HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps, int floor_level) {
     int top = int(model.quad_count) - 1;
     int level = top;
     ivec2 cell = ivec2(0);
@@ -190,6 +190,10 @@ HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, ino
                 if (hf_leaf_hit(r, cell, t, t_exit, bias, th)) {
                     return HfTrace(HF_HIT, th);
                 }
+            } else if (level <= floor_level) {
+                // The node's flat top: where the (linear) depth reaches its bound.
+                float th = hf_depth(r, t) >= bound + bias ? t : (bound + bias - r.d0) / r.dd;
+                return HfTrace(HF_HIT, clamp(th, t, t_exit));
             } else {
                 level -= 1;
                 cell = hf_child(cell, hf_q(r, t), r.dq, float(1 << level), model.quad[level].dims);
@@ -218,16 +222,16 @@ HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, ino
     return HfTrace(HF_MISS, 0.0);
 }
 
-HfTrace hf_trace_clamped(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps) {
+HfTrace hf_trace_clamped(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps, int floor_level) {
     for (int axis = 0; axis < 2; ++axis) {
         if (!hf_clip(r.q0[axis], r.dq[axis], 0.5, float(model.n[axis]) + 0.5, ta, tb)) {
             return HfTrace(HF_MISS, 0.0);
         }
     }
-    return hf_traverse(r, ta, tb, bias, max_steps, steps);
+    return hf_traverse(r, ta, tb, bias, max_steps, steps, floor_level);
 }
 
-HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps) {
+HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps, int floor_level) {
     vec2 n = vec2(model.n);
     vec2 q = hf_q(r, ta);
     ivec2 tile;
@@ -245,7 +249,7 @@ HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_step
         float t_tile = max(min(min(exits.x, exits.y), tb), t);
         HfRay local = r;
         local.q0 = r.q0 - lo;
-        HfTrace h = hf_traverse(local, t, t_tile, bias, max_steps, steps);
+        HfTrace h = hf_traverse(local, t, t_tile, bias, max_steps, steps, floor_level);
         if (h.kind != HF_MISS) {
             return h;
         }
@@ -263,15 +267,18 @@ HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_step
 }
 
 // The first t in [t_start, t_stop] where the ray (o, d) is at least `bias` below the
-// surface. Counts traversal steps in `steps` and stops at `max_steps`.
-HfTrace hf_trace(vec3 o, vec3 d, float t_start, float t_stop, float bias, uint max_steps, inout uint steps) {
+// surface, descending the quadtree no further than `floor_level` (0: exact; above, the
+// node's flat top is the hit: HeightTracer::trace_to). Counts traversal steps in `steps`
+// and stops at `max_steps`.
+HfTrace hf_trace(vec3 o, vec3 d, float t_start, float t_stop, float bias, uint max_steps, inout uint steps, int floor_level) {
     HfRay r = hf_leaf_ray(o, d, t_start);
     float ta = 0.0;
     float tb = t_stop - t_start;
     if (!hf_clip(r.d0, r.dd, 0.0, model.height_scale, ta, tb)) {
         return HfTrace(HF_MISS, 0.0);
     }
-    HfTrace h = hf_periodic() ? hf_trace_periodic(r, ta, tb, bias, max_steps, steps) : hf_trace_clamped(r, ta, tb, bias, max_steps, steps);
+    floor_level = min(floor_level, int(model.quad_count) - 1);
+    HfTrace h = hf_periodic() ? hf_trace_periodic(r, ta, tb, bias, max_steps, steps, floor_level) : hf_trace_clamped(r, ta, tb, bias, max_steps, steps, floor_level);
     if (h.kind == HF_HIT) {
         h.t += t_start;
     }
@@ -287,7 +294,7 @@ bool hf_occluded(vec3 p, vec3 wi, float max_dist, uint max_steps, out bool limit
     }
     float scale = min(model.texel.x, model.texel.y);
     uint steps = 0u;
-    HfTrace h = hf_trace(p, wi, 1e-3 * scale, max_dist, 1e-4 * scale, max_steps, steps);
+    HfTrace h = hf_trace(p, wi, 1e-3 * scale, max_dist, 1e-4 * scale, max_steps, steps, 0);
     limited = h.kind == HF_STEP_LIMIT;
     return h.kind != HF_MISS;
 }

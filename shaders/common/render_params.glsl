@@ -38,7 +38,7 @@ struct GpuRenderParams {
     uint level_mode;    // LEVEL_*
     uint fixed_level;
     float level_bias;
-    uint pad0;
+    uint coarse_relief;   // 1: march the height field only down to the pixel's level
     vec4 edit_tint;       // rgb
     float edit_roughness;
     float edit_rotation;  // radians

@@ -69,7 +69,10 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         return out_;
     }
     uint steps = 0u;
-    HfTrace hit = RELIEF ? hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps) : HfTrace(HF_HIT, t_top);
+    // With coarse relief, the march stops descending at the level of the footprint on
+    // the top plane.
+    int floor_level = params.coarse_relief != 0u ? int(choose_levels(model.top_z).lo) : 0;
+    HfTrace hit = RELIEF ? hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps, floor_level) : HfTrace(HF_HIT, t_top);
     out_.step_limited = hit.kind == HF_STEP_LIMIT;
     out_.steps = steps;
     out_.surface = hit.kind == HF_HIT;

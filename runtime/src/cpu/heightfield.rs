@@ -173,30 +173,43 @@ impl HeightTracer {
     /// (bias 0 for camera rays; a little for shadow rays leaving the surface). Counts its
     /// traversal steps in `steps` and stops at `max_steps`.
     pub fn trace(&self, ray: &Ray, t_start: f32, t_stop: f32, bias: f32, max_steps: u32, steps: &mut u32) -> HfTrace {
+        self.trace_to(ray, t_start, t_stop, bias, max_steps, steps, 0)
+    }
+
+    /// [`HeightTracer::trace`] that descends the quadtree no further than level `floor`:
+    /// there a node whose bound the ray reaches is a hit on the node's flat top (its
+    /// least depth), so the relief finer than 2^floor leaves is flattened to its boxes'
+    /// tops — fewer steps where a pixel covers that many texels anyway (`coarse_relief`
+    /// of the options). floor 0 is the exact march.
+    #[allow(clippy::too_many_arguments)] // trace's arguments and the floor
+    pub fn trace_to(&self, ray: &Ray, t_start: f32, t_stop: f32, bias: f32, max_steps: u32, steps: &mut u32, floor: usize) -> HfTrace {
         let r = self.leaf_ray(ray, t_start);
         // Clip to the slab 0 ≤ D ≤ height_scale: below it every ray is under the surface.
         let (mut ta, mut tb) = (0.0f32, t_stop - t_start);
         if !clip(r.d0, r.dd, 0.0, self.height_scale, &mut ta, &mut tb) {
             return HfTrace::Miss;
         }
-        let result = if self.periodic { self.trace_periodic(&r, ta, tb, bias, max_steps, steps) } else { self.trace_clamped(&r, ta, tb, bias, max_steps, steps) };
+        let floor = floor.min(self.levels.len() - 1);
+        let result = if self.periodic { self.trace_periodic(&r, ta, tb, bias, max_steps, steps, floor) } else { self.trace_clamped(&r, ta, tb, bias, max_steps, steps, floor) };
         match result {
             HfTrace::Hit(t) => HfTrace::Hit(t + t_start),
             other => other,
         }
     }
 
-    fn trace_clamped(&self, r: &HfRay, mut ta: f32, mut tb: f32, bias: f32, max_steps: u32, steps: &mut u32) -> HfTrace {
+    #[allow(clippy::too_many_arguments)]
+    fn trace_clamped(&self, r: &HfRay, mut ta: f32, mut tb: f32, bias: f32, max_steps: u32, steps: &mut u32, floor: usize) -> HfTrace {
         // The tile: q ∈ [½, n + ½] on each axis.
         for axis in 0..2 {
             if !clip(r.q0[axis], r.dq[axis], 0.5, self.n[axis] as f32 + 0.5, &mut ta, &mut tb) {
                 return HfTrace::Miss;
             }
         }
-        self.traverse(r, ta, tb, bias, max_steps, steps)
+        self.traverse(r, ta, tb, bias, max_steps, steps, floor)
     }
 
-    fn trace_periodic(&self, r: &HfRay, ta: f32, tb: f32, bias: f32, max_steps: u32, steps: &mut u32) -> HfTrace {
+    #[allow(clippy::too_many_arguments)]
+    fn trace_periodic(&self, r: &HfRay, ta: f32, tb: f32, bias: f32, max_steps: u32, steps: &mut u32, floor: usize) -> HfTrace {
         // Walk the repeats of the tile (cells of n leaves) with a 2D DDA; traverse each.
         let n = Vec2::new(self.n[0] as f32, self.n[1] as f32);
         let q = r.q(ta);
@@ -215,7 +228,7 @@ impl HeightTracer {
             let exits = [axis_exit(r.q0.x, r.dq.x, lo.x, lo.x + n.x), axis_exit(r.q0.y, r.dq.y, lo.y, lo.y + n.y)];
             let t_tile = exits[0].min(exits[1]).min(tb).max(t);
             let local = HfRay { q0: r.q0 - lo, ..*r };
-            match self.traverse(&local, t, t_tile, bias, max_steps, steps) {
+            match self.traverse(&local, t, t_tile, bias, max_steps, steps, floor) {
                 HfTrace::Miss => {}
                 other => return other,
             }
@@ -233,7 +246,8 @@ impl HeightTracer {
     }
 
     /// The quadtree traversal of one tile's leaves over [ta, tb].
-    fn traverse(&self, r: &HfRay, ta: f32, tb: f32, bias: f32, max_steps: u32, steps: &mut u32) -> HfTrace {
+    #[allow(clippy::too_many_arguments)]
+    fn traverse(&self, r: &HfRay, ta: f32, tb: f32, bias: f32, max_steps: u32, steps: &mut u32, floor: usize) -> HfTrace {
         let top = self.levels.len() - 1;
         let mut level = top;
         let mut cell = [0i32; 2];
@@ -258,6 +272,10 @@ impl HeightTracer {
                     if let Some(th) = self.leaf_hit(r, cell, t, t_exit, bias) {
                         return HfTrace::Hit(th);
                     }
+                } else if level <= floor {
+                    // The node's flat top: where the (linear) depth reaches its bound.
+                    let th = if r.depth(t) >= bound + bias { t } else { (bound + bias - r.d0) / r.dd };
+                    return HfTrace::Hit(th.clamp(t, t_exit));
                 } else {
                     level -= 1;
                     cell = child(cell, r.q(t), r.dq, (1i32 << level) as f32, self.levels[level].dims);

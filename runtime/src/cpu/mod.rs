@@ -77,6 +77,11 @@ pub struct CpuRenderOptions {
     pub background: Vec3,
     /// March the flyaways (off: the surface alone, as if the model had none).
     pub flyaways: bool,
+    /// March the height field only down to the quadtree level of the pixel's surface
+    /// level at the top plane: a node the ray reaches there is a hit on its flat top. Far
+    /// away this takes fewer steps and flattens relief finer than the pixel; off (the
+    /// default), the march is exact at every distance.
+    pub coarse_relief: bool,
     /// Appearance edits (identity by default).
     pub edits: Edits,
 }
@@ -92,6 +97,7 @@ impl Default for CpuRenderOptions {
             supersampling: 1,
             background: Vec3::ZERO,
             flyaways: true,
+            coarse_relief: false,
             edits: Edits::default(),
         }
     }

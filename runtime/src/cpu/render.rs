@@ -287,7 +287,10 @@ impl<'a> Scene<'a> {
             return out;
         };
         let mut steps = 0;
-        let hit = self.tracer.trace(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps);
+        // With coarse relief, the march stops descending at the level of the footprint on
+        // the top plane.
+        let floor = if self.options.coarse_relief { choose(self.model.tile.top_z).lo } else { 0 };
+        let hit = self.tracer.trace_to(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps, floor);
         out.step_limited = hit == HfTrace::StepLimit;
         out.steps = steps;
         if let HfTrace::Hit(t) = hit {

@@ -323,7 +323,7 @@ impl HybridPass {
             level_mode,
             fixed_level,
             level_bias,
-            pad: 0,
+            coarse_relief: options.coarse_relief as u32,
             edit_tint: e.tint.extend(0.0).to_array(),
             edit_roughness: e.roughness_scale,
             edit_rotation: e.tangent_rotation,

@@ -312,7 +312,8 @@ pub struct GpuRenderParams {
     pub level_mode: u32,
     pub fixed_level: u32,
     pub level_bias: f32,
-    pub pad: u32,
+    /// 1: march the height field only down to the pixel's level (`coarse_relief`).
+    pub coarse_relief: u32,
     /// Edits (`cpu::edits`): tint (rgb), then the width scale, the tangent rotation
     /// (radians) and the mask's size (0×0: no mask, edits everywhere).
     pub edit_tint: [f32; 4],

@@ -37,6 +37,10 @@ pub struct CpuRenderFlags {
     /// Skip the flyaway fibers (the surface alone).
     #[arg(long)]
     pub no_flyaways: bool,
+    /// March the height field only down to each pixel's level: fewer steps far away,
+    /// relief finer than a pixel flattened (off: exact at every distance).
+    #[arg(long)]
+    pub coarse_relief: bool,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
     pub tint: glam::Vec3,
@@ -97,6 +101,7 @@ impl CpuRenderFlags {
             supersampling: self.supersample,
             max_steps: self.max_steps,
             flyaways: !self.no_flyaways,
+            coarse_relief: self.coarse_relief,
             edits,
             ..Default::default()
         })
@@ -158,7 +163,7 @@ mod tests {
         let camera = CameraArgs { view_angles: Some((30.0, -90.0)), size: (32, 24), up: glam::Vec3::Z, ..Default::default() };
         let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
         let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
-        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
+        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
         run(&model, &camera, &light, &output, &flags).unwrap();
         let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
         assert_eq!((image.width, image.height), (32, 24));
