@@ -200,3 +200,38 @@ fn the_chain_is_deterministic_and_finite() {
     assert_eq!(fabric_runtime::hybrid::format::read(&bytes).unwrap(), a);
 }
 
+
+#[test]
+fn degenerate_models_end_in_a_clear_result() {
+    // Black (every k and k_d zero), constant, a 1×1 level 0, a 1×N strip, and lobes at
+    // the ends of their ranges: each either prefilters to a valid, finite chain or is
+    // refused with an error — never a panic, a NaN or an invalid file.
+    let tile = flat_tile(8);
+    let black = ClothParams::new(Vec3::ZERO, 1.0, 0.0, &[ClothLobe { k: Vec3::ZERO, beta: 0.1, gamma: 0.0 }]);
+    let extreme = ClothParams::new(Vec3::splat(65504.0), 4.0, 1e4, &[ClothLobe { k: Vec3::splat(65504.0), beta: 1e-3, gamma: 1e-3 }, ClothLobe { k: Vec3::ZERO, beta: 1e4, gamma: 0.0 }]);
+    let cases: Vec<(&str, HybridModel)> = vec![
+        ("black", uniform_model(8, 8, 1, tile, |_, _| 0.01, &black, Vec3::Z, Vec3::X).unwrap()),
+        ("constant", uniform_model(8, 8, 1, tile, |_, _| 0.01, &plain_params(), Vec3::Z, Vec3::X).unwrap()),
+        ("1x1", uniform_model(1, 1, 1, tile, |_, _| 0.01, &plain_params(), Vec3::Z, Vec3::X).unwrap()),
+        ("1x8 strip", uniform_model(1, 8, 1, tile, |_, _| 0.01, &plain_params(), Vec3::new(0.3, 0.0, 1.0), Vec3::Y).unwrap()),
+        ("extreme lobes, facing down", uniform_model(8, 8, 1, tile, |x, y| 0.01 + 0.005 * (9.0 * x).sin() * y, &extreme, -Vec3::Z, Vec3::Z).unwrap()),
+    ];
+    for (name, m) in cases {
+        match prefilter(&m, &PrefilterOptions::default(), &NoProgress) {
+            Ok((out, report)) => {
+                out.validate().unwrap_or_else(|e| panic!("{name}: an invalid chain: {e}"));
+                assert_eq!(out.levels.len(), fabric_runtime::hybrid::max_levels(m.width(), m.height_px()), "{name}");
+                for r in &report.levels {
+                    assert!(r.fit_error.is_finite() && r.fit_error >= 0.0, "{name}: fit error {}", r.fit_error);
+                }
+                let bytes = fabric_runtime::hybrid::format::to_bytes(&out).unwrap();
+                assert_eq!(fabric_runtime::hybrid::format::read(&bytes).unwrap(), out, "{name}: round trip");
+                println!("{name}: {} levels, fit errors {:?}", out.levels.len(), report.levels.iter().map(|r| r.fit_error).collect::<Vec<_>>());
+            }
+            Err(e) => {
+                assert!(!e.to_string().is_empty(), "{name}");
+                println!("{name}: refused: {e}");
+            }
+        }
+    }
+}
