@@ -10,7 +10,9 @@ use std::sync::Arc;
 
 use fabric_runtime::brdf::twin::{BrdfEvalInput, BrdfEvalOutput, generate_inputs};
 use fabric_runtime::brdf::{BETA_MIN, K_MAX};
-use fabric_runtime::vk::{CheckedDevice, BindingKind, Buffer, DescriptorSet, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, vk};
+use fabric_runtime::vk::{CheckedDevice, Device};
+
+mod support;
 
 /// The device, validation on; its drop fails the test on any validation error.
 fn device() -> CheckedDevice {
@@ -19,26 +21,9 @@ fn device() -> CheckedDevice {
 
 /// Runs brdf_eval.comp on `inputs`.
 fn evaluate_on_gpu(device: &Arc<Device>, inputs: &[BrdfEvalInput]) -> Vec<BrdfEvalOutput> {
-    let module = ShaderModule::embedded(device, "brdf_eval.comp").unwrap();
-    let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer, BindingKind::StorageBuffer], vk::ShaderStageFlags::COMPUTE).unwrap();
-    let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 4, vk::ShaderStageFlags::COMPUTE).unwrap());
-    let pipeline = Pipeline::compute(device, "brdf_eval", &module, &layout, &Specialization::new()).unwrap();
-    let in_bytes: &[u8] = bytemuck::cast_slice(inputs);
-    let input = Buffer::new(device, "brdf inputs", in_bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu).unwrap();
-    input.write_mapped(in_bytes).unwrap();
-    let out_size = (inputs.len() * size_of::<BrdfEvalOutput>()) as u64;
-    let output = Buffer::new(device, "brdf outputs", out_size, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu).unwrap();
-    let set = DescriptorSet::new(device, &set_layout, &[Resource::Buffer(&input), Resource::Buffer(&output)]).unwrap();
-    let n = inputs.len() as u32;
-    device
-        .record_and_run("brdf_eval", |rec| {
-            rec.bind_pipeline(&pipeline);
-            rec.bind_sets(&pipeline, &[&set]);
-            rec.push_constants(&pipeline, bytemuck::bytes_of(&n));
-            rec.dispatch(n.div_ceil(64), 1, 1);
-        })
-        .unwrap();
-    bytemuck::pod_collect_to_vec(output.mapped().expect("host-visible output"))
+    let input = support::storage(device, "brdf inputs", bytemuck::cast_slice(inputs));
+    let out = support::run_compute(device, "brdf_eval.comp", &[&input], (inputs.len() * size_of::<BrdfEvalOutput>()) as u64, inputs.len() as u32);
+    bytemuck::pod_collect_to_vec(&out)
 }
 
 /// The scale of an input's outputs: the largest value its BRDF can take,

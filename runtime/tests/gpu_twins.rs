@@ -18,7 +18,9 @@ use fabric_runtime::hybrid::gpu_layout::{GpuModel, GpuRenderParams, LEVEL_AUTO};
 use fabric_runtime::hybrid::packing::{f16_bits, f16_value, octahedral_decode, snorm16_value, tangent_angle_decode, unorm16_value};
 use fabric_runtime::hybrid::{HybridModel, examples};
 use fabric_runtime::scene::Ray;
-use fabric_runtime::vk::{BindingKind, Buffer, CheckedDevice, DescriptorSet, DescriptorSetLayout, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, vk};
+use fabric_runtime::vk::{Buffer, CheckedDevice};
+
+mod support;
 use glam::{Vec2, Vec3, Vec4};
 
 #[repr(C)]
@@ -44,12 +46,7 @@ struct TwinOutput {
 
 fn evaluate(device: &CheckedDevice, model: &HybridModel, periodic: bool, inputs: &[TwinInput]) -> Vec<TwinOutput> {
     let layout_data = GpuModel::new(model, periodic).unwrap();
-    let module = ShaderModule::embedded(device, "twin_eval.comp").unwrap();
-    let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 11], vk::ShaderStageFlags::COMPUTE).unwrap();
-    let layout = std::sync::Arc::new(PipelineLayout::new(device, &[&set_layout], 4, vk::ShaderStageFlags::COMPUTE).unwrap());
-    let pipeline = Pipeline::compute(device, "twin_eval", &module, &layout, &Specialization::new()).unwrap();
-    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let mut buffers: Vec<Buffer> = layout_data.arrays().iter().map(|(name, bytes)| Buffer::with_data(device, name, bytes, storage).unwrap()).collect();
+    let mut buffers: Vec<Buffer> = layout_data.arrays().iter().map(|(name, bytes)| support::storage(device, name, bytes)).collect();
     // No lights (the flyaway march's radiance is zero), automatic levels with a bias.
     let mut params: GpuRenderParams = Zeroable::zeroed();
     params.level_mode = LEVEL_AUTO;
@@ -57,23 +54,12 @@ fn evaluate(device: &CheckedDevice, model: &HybridModel, periodic: bool, inputs:
     params.max_steps = 4096;
     params.edit_tint = [1.0; 4];
     params.edit_roughness = 1.0;
-    buffers.push(Buffer::with_data(device, "params", bytemuck::bytes_of(&params), storage).unwrap());
-    buffers.push(Buffer::with_data(device, "mask", &[0u8; 4], storage).unwrap());
-    buffers.push(Buffer::with_data(device, "inputs", bytemuck::cast_slice(inputs), storage).unwrap());
-    let out = Buffer::new(device, "outputs", (inputs.len() * size_of::<TwinOutput>()) as u64, storage, MemoryLocation::GpuToCpu).unwrap();
-    let mut resources: Vec<Resource<'_>> = buffers.iter().map(Resource::Buffer).collect();
-    resources.push(Resource::Buffer(&out));
-    let set = DescriptorSet::new(device, &set_layout, &resources).unwrap();
-    let n = inputs.len() as u32;
-    device
-        .record_and_run("twin_eval", |rec| {
-            rec.bind_pipeline(&pipeline);
-            rec.bind_sets(&pipeline, &[&set]);
-            rec.push_constants(&pipeline, bytemuck::bytes_of(&n));
-            rec.dispatch(n.div_ceil(64), 1, 1);
-        })
-        .unwrap();
-    bytemuck::pod_collect_to_vec(out.mapped().expect("host-visible output"))
+    buffers.push(support::storage(device, "params", bytemuck::bytes_of(&params)));
+    buffers.push(support::storage(device, "mask", &[0u8; 4]));
+    buffers.push(support::storage(device, "inputs", bytemuck::cast_slice(inputs)));
+    let refs: Vec<&Buffer> = buffers.iter().collect();
+    let out = support::run_compute(device, "twin_eval.comp", &refs, (inputs.len() * size_of::<TwinOutput>()) as u64, inputs.len() as u32);
+    bytemuck::pod_collect_to_vec(&out)
 }
 
 fn v4(v: Vec3, w: f32) -> [f32; 4] {

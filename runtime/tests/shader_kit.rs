@@ -10,7 +10,9 @@ use fabric_runtime::brdf::twin::SplitMix64;
 use fabric_runtime::cpu::shading::texel_response;
 use fabric_runtime::hybrid::examples;
 use fabric_runtime::hybrid::gpu_layout::GpuModel;
-use fabric_runtime::vk::{BindingKind, Buffer, CheckedDevice, DescriptorSet, DescriptorSetLayout, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, vk};
+use fabric_runtime::vk::{Buffer, CheckedDevice};
+
+mod support;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -37,30 +39,14 @@ fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
             }
         }
     }
-    let module = ShaderModule::embedded(&device, "example_texel_brdf.comp").unwrap();
-    let set_layout = DescriptorSetLayout::new(&device, &[BindingKind::StorageBuffer; 11], vk::ShaderStageFlags::COMPUTE).unwrap();
-    let layout = std::sync::Arc::new(PipelineLayout::new(&device, &[&set_layout], 4, vk::ShaderStageFlags::COMPUTE).unwrap());
-    let pipeline = Pipeline::compute(&device, "example_texel_brdf", &module, &layout, &Specialization::new()).unwrap();
-    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let mut buffers: Vec<Buffer> = arrays.arrays().iter().map(|(name, bytes)| Buffer::with_data(&device, name, bytes, storage).unwrap()).collect();
+    let mut buffers: Vec<Buffer> = arrays.arrays().iter().map(|(name, bytes)| support::storage(&device, name, bytes)).collect();
     // Bindings 7 and 8 (frame parameters, edit mask) are declared, not read.
-    buffers.push(Buffer::with_data(&device, "unused params", &[0u8; 416], storage).unwrap());
-    buffers.push(Buffer::with_data(&device, "unused mask", &[0u8; 4], storage).unwrap());
-    buffers.push(Buffer::with_data(&device, "queries", bytemuck::cast_slice(&queries), storage).unwrap());
-    let out = Buffer::new(&device, "responses", (queries.len() * 16) as u64, storage, MemoryLocation::GpuToCpu).unwrap();
-    let mut resources: Vec<Resource<'_>> = buffers.iter().map(Resource::Buffer).collect();
-    resources.push(Resource::Buffer(&out));
-    let set = DescriptorSet::new(&device, &set_layout, &resources).unwrap();
-    let n = queries.len() as u32;
-    device
-        .record_and_run("example", |rec| {
-            rec.bind_pipeline(&pipeline);
-            rec.bind_sets(&pipeline, &[&set]);
-            rec.push_constants(&pipeline, bytemuck::bytes_of(&n));
-            rec.dispatch(n.div_ceil(64), 1, 1);
-        })
-        .unwrap();
-    let got: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(out.mapped().unwrap());
+    buffers.push(support::storage(&device, "unused params", &[0u8; 416]));
+    buffers.push(support::storage(&device, "unused mask", &[0u8; 4]));
+    buffers.push(support::storage(&device, "queries", bytemuck::cast_slice(&queries)));
+    let refs: Vec<&Buffer> = buffers.iter().collect();
+    let out = support::run_compute(&device, "example_texel_brdf.comp", &refs, (queries.len() * 16) as u64, queries.len() as u32);
+    let got: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&out);
     let mut worst = 0.0f32;
     for (q, g) in queries.iter().zip(&got) {
         let b = model.levels[q.texel[0] as usize].texel_brdf(q.texel[1], q.texel[2]);

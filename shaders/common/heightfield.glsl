@@ -39,21 +39,10 @@ float hf_depth(HfRay r, float t) {
     return r.d0 + r.dd * t;
 }
 
-bool hf_periodic() {
-    return (model.flags & GPU_FLAG_PERIODIC) != 0u;
-}
-
 // Depth sample (i, j), wrapped (periodic) or clamped to the edge.
 float hf_sample(int i, int j) {
-    ivec2 n = model.n;
-    if (hf_periodic()) {
-        i = wrap_index(i, n.x);
-        j = wrap_index(j, n.y);
-    } else {
-        i = clamp(i, 0, n.x - 1);
-        j = clamp(j, 0, n.y - 1);
-    }
-    return model_floats[j * n.x + i];
+    ivec2 ij = tile_index(i, j, model.n);
+    return model_floats[ij.y * model.n.x + ij.x];
 }
 
 // Depths at the corners of leaf (cx, cy): (0,0), (1,0), (0,1), (1,1).
@@ -278,7 +267,7 @@ HfTrace hf_trace(vec3 o, vec3 d, float t_start, float t_stop, float bias, uint m
         return HfTrace(HF_MISS, 0.0);
     }
     floor_level = min(floor_level, int(model.quad_count) - 1);
-    HfTrace h = hf_periodic() ? hf_trace_periodic(r, ta, tb, bias, max_steps, steps, floor_level) : hf_trace_clamped(r, ta, tb, bias, max_steps, steps, floor_level);
+    HfTrace h = model_periodic() ? hf_trace_periodic(r, ta, tb, bias, max_steps, steps, floor_level) : hf_trace_clamped(r, ta, tb, bias, max_steps, steps, floor_level);
     if (h.kind == HF_HIT) {
         h.t += t_start;
     }

@@ -90,6 +90,15 @@ bool model_periodic() {
     return (model.flags & GPU_FLAG_PERIODIC) != 0u;
 }
 
+// Cell (i, j) of an n-sized grid over the tile: wrapped on a periodic tile, clamped to
+// the edge on a clamped one (every lookup of the model uses this rule).
+ivec2 tile_index(int i, int j, ivec2 n) {
+    if (model_periodic()) {
+        return ivec2(wrap_index(i, n.x), wrap_index(j, n.y));
+    }
+    return ivec2(clamp(i, 0, n.x - 1), clamp(j, 0, n.y - 1));
+}
+
 uint model_reading() {
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
 }
@@ -137,16 +146,8 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
 // Twin: Scene::texel_at (runtime/src/cpu/render.rs).
 uvec2 texel_at(vec3 p, uint level) {
     vec2 u = (p.xy - model.origin) / model.texel;
-    int i = int(floor(u.x));
-    int j = int(floor(u.y));
-    if (model_periodic()) {
-        i = wrap_index(i, model.n.x);
-        j = wrap_index(j, model.n.y);
-    } else {
-        i = clamp(i, 0, model.n.x - 1);
-        j = clamp(j, 0, model.n.y - 1);
-    }
-    return uvec2(uint(i) >> level, uint(j) >> level);
+    ivec2 ij = tile_index(int(floor(u.x)), int(floor(u.y)), model.n);
+    return uvec2(uint(ij.x) >> level, uint(ij.y) >> level);
 }
 
 // Corner c (0: (0,0), 1: (1,0), 2: (0,1), 3: (1,1)) of the four level-`level` texels
@@ -160,16 +161,7 @@ float bilinear_texel(vec3 p, uint level, int c, out uvec2 ij) {
     vec2 f0 = floor(u);
     float fx = u.x - f0.x;
     float fy = u.y - f0.y;
-    int i = int(f0.x) + (c & 1);
-    int j = int(f0.y) + (c >> 1);
-    if (model_periodic()) {
-        i = wrap_index(i, dims.x);
-        j = wrap_index(j, dims.y);
-    } else {
-        i = clamp(i, 0, dims.x - 1);
-        j = clamp(j, 0, dims.y - 1);
-    }
-    ij = uvec2(i, j);
+    ij = uvec2(tile_index(int(f0.x) + (c & 1), int(f0.y) + (c >> 1), dims));
     float wx = (c & 1) != 0 ? fx : 1.0 - fx;
     float wy = (c >> 1) != 0 ? fy : 1.0 - fy;
     return wx * wy;

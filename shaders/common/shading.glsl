@@ -110,6 +110,11 @@ float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool vol
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
 
+// Light k at p: its irradiance, the direction toward it and its distance.
+vec3 light_at(uint k, vec3 p, out vec3 wi, out float dist) {
+    return light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
+}
+
 // Radiance leaving p toward wo under the lights, from one texel (a flyaway: edited
 // without rotation).
 vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
@@ -119,7 +124,7 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
         float dist;
-        vec3 irradiance = light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
+        vec3 irradiance = light_at(k, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
             continue;
         }
@@ -160,7 +165,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
         float dist;
-        vec3 irradiance = light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
+        vec3 irradiance = light_at(k, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
             continue;
         }
