@@ -19,6 +19,8 @@ enum Command {
     /// The main job on a built-in default: generate a twill, bake it, draw it against the
     /// reference on the GPU; prints bake time, model size, error and frame time into out/.
     Demo(cmd::demo::DemoArgs),
+    /// Run time against error: per preset bake and render figures, sweeps as CSVs and plots, summary.md.
+    Bench(cmd::bench::BenchArgs),
     /// Generate a procedural fabric volume (woven or felt) as a fabric directory.
     #[command(name = "gen")]
     Gen(cmd::generate::GenArgs),
@@ -57,6 +59,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
         Command::Gen(a) => cmd::generate::run(a),
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Reference(a) => cmd::reference::run(a),

@@ -276,3 +276,31 @@ fn the_demo_runs_the_main_job_end_to_end() {
     let o = fabric().args(["demo", "--size", "0x0x0", "--out"]).arg(&out).output().unwrap();
     assert!(!o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("panicked"));
 }
+
+#[test]
+fn bench_writes_its_csvs_plots_and_summary() {
+    // One small preset (the quick suite bakes five at 48x48x12: under 10 minutes).
+    let out = tmp("bench");
+    let _ = std::fs::remove_dir_all(&out);
+    let o = fabric().args(["bench", "--presets", "twill", "--size", "24x24x8", "--out"]).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
+    for want in ["| twill |", "Frame time by resolution", "By distance", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper"] {
+        assert!(summary.contains(want), "summary.md lacks '{want}'");
+    }
+    for sweep in ["pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp"] {
+        let csv = std::fs::read_to_string(out.join(format!("{sweep}.csv"))).unwrap_or_else(|_| panic!("{sweep}.csv"));
+        assert!(csv.lines().count() >= 3, "{sweep}.csv has rows: {csv}");
+        for line in csv.lines().skip(1) {
+            let error: f64 = line.rsplit(',').next().unwrap().parse().unwrap();
+            assert!(error.is_finite() && error >= 0.0, "{sweep}: {line}");
+        }
+        // Plots where a font is installed (CI installs fonts-dejavu-core).
+        if std::path::Path::new("/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf").exists() {
+            assert!(out.join(format!("{sweep}.png")).exists() && out.join(format!("{sweep}.svg")).exists(), "{sweep} plots");
+        }
+    }
+    let o = fabric().args(["bench", "--presets", "", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--presets"));
+}

@@ -1,6 +1,7 @@
 //! One module per `fabric` subcommand.
 
 pub mod bake;
+pub mod bench;
 pub mod demo;
 pub mod devices;
 pub mod diff;
