@@ -10,6 +10,7 @@
 #include "common/shading.glsl"
 
 const float MIN_TRANSMITTANCE = 1e-4;
+const float TILE_LIMIT = 16777216.0;
 
 struct FlyawayMarch {
     vec3 radiance;        // premultiplied by the nodes' opacities
@@ -48,7 +49,8 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
     ivec2 k;
     for (int axis = 0; axis < 2; ++axis) {
         float n = float(n0[axis]);
-        int t_ = int(floor(u_start[axis] / n));
+        // Clamped to 2^24 repeats, as the CPU twin (TILE_LIMIT): no overflow far away.
+        int t_ = int(clamp(floor(u_start[axis] / n), -TILE_LIMIT, TILE_LIMIT));
         float local = u_start[axis] - float(t_) * n;
         if (local <= 0.0 && du[axis] < 0.0) {
             t_ -= 1;
@@ -69,7 +71,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         out_.columns += 1u;
         vec2 exits = vec2(HF_INF);
         for (int axis = 0; axis < 2; ++axis) {
-            float base = float(tile[axis] * n0[axis]);
+            float base = float(tile[axis]) * float(n0[axis]);
             float lo = base + float(k[axis] * span);
             float hi = base + float(min((k[axis] + 1) * span, n0[axis]));
             if (du[axis] > 0.0) {

@@ -11,6 +11,8 @@
 #include "common/model.glsl"
 
 #define HF_REFINE_STEPS 20
+// The most tile repeats from the origin a periodic march starts at (flyaways::TILE_LIMIT).
+const float TILE_LIMIT_HF = 16777216.0;
 #define HF_MISS 0u
 #define HF_HIT 1u
 #define HF_STEP_LIMIT 2u
@@ -226,7 +228,7 @@ HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_step
     ivec2 tile;
     for (int axis = 0; axis < 2; ++axis) {
         float f = floor(q[axis] / n[axis]);
-        tile[axis] = int(f);
+        tile[axis] = int(clamp(f, -TILE_LIMIT_HF, TILE_LIMIT_HF));
         if (q[axis] == f * n[axis] && r.dq[axis] < 0.0) {
             tile[axis] -= 1;
         }

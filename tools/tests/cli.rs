@@ -304,3 +304,14 @@ fn bench_writes_its_csvs_plots_and_summary() {
     let o = fabric().args(["bench", "--presets", "", "--out"]).arg(&out).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--presets"));
 }
+
+#[test]
+fn bench_stress_runs_and_passes() {
+    // The long run is 10^7 BRDF inputs and 10^6 files; here a short one of each.
+    let o = fabric().args(["bench", "--stress", "--stress-brdf", "200000", "--stress-files", "20000"]).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    for want in ["BRDF: 200000", "reader: 20000 corrupted files", "renderers:", "stress: passed"] {
+        assert!(stdout.contains(want), "{stdout}");
+    }
+}

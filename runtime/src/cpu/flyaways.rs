@@ -23,6 +23,9 @@ use crate::scene::Ray;
 /// dropped); at level 0 the transmittance is exactly 0 after the first node.
 pub const MIN_TRANSMITTANCE: f32 = 1e-4;
 
+/// The most tile repeats from the origin a march starts at (see `visit_flyaways`).
+pub const TILE_LIMIT: f32 = 16_777_216.0;
+
 /// Where a level's flyaway columns are.
 #[derive(Clone, Copy, Debug)]
 pub struct FlyawayGrid {
@@ -122,7 +125,9 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
     let mut cursor = [AxisCursor { tile: 0, k: 0 }; 2];
     for axis in 0..2 {
         let n = g.n0[axis] as f32;
-        let mut tile = (u_start[axis] / n).floor() as i32;
+        // Clamped far beyond where f32 positions still resolve a texel (2^24 repeats), so
+        // that rays meeting the plane absurdly far away step without integer overflow.
+        let mut tile = (u_start[axis] / n).floor().clamp(-TILE_LIMIT, TILE_LIMIT) as i32;
         let mut local = u_start[axis] - tile as f32 * n;
         // On a tile boundary moving backwards: the tile behind.
         if local <= 0.0 && du[axis] < 0.0 {
@@ -147,7 +152,7 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
         let mut exits = [f32::INFINITY; 2];
         for axis in 0..2 {
             let c = cursor[axis];
-            let base = (c.tile * g.n0[axis]) as f32;
+            let base = c.tile as f32 * g.n0[axis] as f32;
             let lo = base + (c.k * g.span) as f32;
             let hi = base + ((c.k + 1) * g.span).min(g.n0[axis]) as f32;
             exits[axis] = if du[axis] > 0.0 {

@@ -216,7 +216,9 @@ impl HeightTracer {
         let mut tile = [0i32; 2];
         for axis in 0..2 {
             let f = (q[axis] / n[axis]).floor();
-            tile[axis] = f as i32;
+            // Clamped as the flyaway march clamps (flyaways::TILE_LIMIT): no overflow
+            // for rays that meet the slab absurdly far away.
+            tile[axis] = f.clamp(-super::flyaways::TILE_LIMIT, super::flyaways::TILE_LIMIT) as i32;
             // On a boundary, moving backwards: the tile behind.
             if q[axis] == f * n[axis] && r.dq[axis] < 0.0 {
                 tile[axis] -= 1;

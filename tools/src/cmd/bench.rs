@@ -50,6 +50,15 @@ pub struct BenchArgs {
     /// Volume size instead of the suite's (X x Y x Z).
     #[arg(long)]
     pub size: Option<String>,
+    /// Run the long numerical-stability and robustness run instead (`stress.rs`).
+    #[arg(long)]
+    pub stress: bool,
+    /// BRDF inputs of the stress run (both twins).
+    #[arg(long, default_value_t = 10_000_000)]
+    pub stress_brdf: usize,
+    /// Corrupted model files of the stress run.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub stress_files: usize,
 }
 
 struct Plan {
@@ -188,6 +197,9 @@ fn view_camera(m: &HybridModel, size: u32, zoom_out: f32) -> Camera {
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
+    if args.stress {
+        return super::stress::run(args.stress_brdf, args.stress_files);
+    }
     let mut p = plan(args.suite);
     let size_override = args.size.clone();
     if let Some(s) = &size_override {

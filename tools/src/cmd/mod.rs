@@ -14,4 +14,5 @@ pub mod reference;
 pub mod render;
 pub mod render_cpu;
 pub mod render_gpu;
+pub mod stress;
 pub mod view;
