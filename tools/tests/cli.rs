@@ -286,7 +286,7 @@ fn bench_writes_its_csvs_plots_and_summary() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
-    for want in ["| twill |", "Frame time by resolution", "By distance", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper"] {
+    for want in ["| twill |", "GPU ms 320x180", "Frame time by distance", "reference view FLIP", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper"] {
         assert!(summary.contains(want), "summary.md lacks '{want}'");
     }
     for sweep in ["pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp"] {

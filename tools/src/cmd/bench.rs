@@ -225,7 +225,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
     let ref_view = ["--periodic", "--view-angles", "30,20", "--light-angles", "40,200"];
     let ref_size = format!("{0}x{0}", p.ref_size);
-    let mut table = String::from("| preset | generate (s) | bake (s) | training renders (s) | fitting (s) | flyaways (s) | prefilter (s) | volume (MB) | model (MB) | held-out RMSE (median) | reference view RMSE | GPU ms (view) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let res_heads: String = p.resolutions.iter().map(|(w, h)| format!(" GPU ms {w}x{h} |")).collect();
+    let res_rule: String = p.resolutions.iter().map(|_| "---|").collect();
+    let mut table = format!("| preset | generate (s) | bake (s) | training renders (s) | fitting (s) | flyaways (s) | prefilter (s) | volume (MB) | model (MB) | held-out RMSE (median) | reference view RMSE | reference view FLIP |{res_heads}\n|---|---|---|---|---|---|---|---|---|---|---|---|{res_rule}\n");
     let mut sweeps: Vec<Sweep> = Vec::new();
     let mut speed = String::new();
     for (pi, preset) in presets.iter().enumerate() {
@@ -252,11 +254,19 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let cam = view_camera(&model, p.ref_size, 1.0);
         let (ms, img) = gpu.frame(&g, &cam, &light, &opts, None)?;
         let err = relative_rmse(&img, &reference)?;
+        let exposure = (0.4 / reference.mean().max(1e-9) as f32).clamp(1e-3, 1e3);
+        let flip = fabric_runtime::metrics::flip(&img, &reference, exposure)?.mean;
+        let mut res_cells = String::new();
+        for &(w, h) in p.resolutions {
+            let c = Camera { width: w, height: h, projection: fabric_runtime::scene::Projection::Orthographic { extent: model.bounds().size().x }, ..view_camera(&model, w, 1.0) };
+            let (t, _) = gpu.frame(&g, &c, &light, &opts, None)?;
+            let _ = write!(res_cells, " {t:.1} |");
+        }
         let input = bake["input_bytes"].as_f64().unwrap_or(0.0);
         let model_bytes = std::fs::metadata(&model_path)?.len() as f64;
         let _ = writeln!(
             table,
-            "| {preset} | {t_gen:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.3} | {:.1}% | {:.1}% | {ms:.1} |",
+            "| {preset} | {t_gen:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.3} | {:.1}% | {:.1}% | {flip:.3} |{res_cells}",
             bake["total_seconds"].as_f64().unwrap_or(t_bake),
             stage("training renderings"),
             stage("clustering and fitting") + stage("per-texel refinement"),
@@ -272,13 +282,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
             continue;
         }
         // The sweeps, on the first preset.
-        let mut res = String::from("| resolution | GPU frame time (ms) |\n|---|---|\n");
-        for &(w, h) in p.resolutions {
-            let c = Camera { width: w, height: h, ..view_camera(&model, w, 1.0) };
-            let c = Camera { projection: fabric_runtime::scene::Projection::Orthographic { extent: model.bounds().size().x }, ..c };
-            let (t, _) = gpu.frame(&g, &c, &light, &opts, None)?;
-            let _ = writeln!(res, "| {w}x{h} | {t:.1} |");
-        }
         let mut dist = String::from("| view width (tiles) | pixels per texel | GPU ms | level (most pixels) |\n|---|---|---|---|\n");
         for zoom in [1.0f32, 4.0, 16.0, 64.0] {
             let c = view_camera(&model, 128, zoom);
@@ -287,7 +290,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             let level = frame.stats.level_pixels.iter().enumerate().max_by_key(|(_, n)| **n).map(|(l, _)| l).unwrap_or(0);
             let _ = writeln!(dist, "| {zoom} | {:.2} | {t:.1} | {level} |", 128.0 / (model.width() as f32 * zoom));
         }
-        speed = format!("### Frame time by resolution ({preset})\n\n{res}\n### By distance ({preset}, 128×128 pixels)\n\n{dist}\n");
+        speed = format!("### Frame time by distance ({preset}, 128×128 pixels; by resolution: the table above)\n\n{dist}\n");
         let vary = |name: &'static str, what: &'static str, cases: Vec<(String, CpuRenderOptions, Option<Variant>)>| -> Result<Sweep> {
             let mut rows = Vec::new();
             for (label, o, v) in cases {
