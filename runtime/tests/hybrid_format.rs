@@ -274,32 +274,9 @@ fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
     let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
     let (mut rejected, mut accepted) = (0, 0);
     for it in 0..iterations {
-        let mut b = good.clone();
-        let n = b.len() as u64;
         let kind = rng.next_u64() % 6;
-        match kind {
-            0 => {
-                for _ in 0..1 + rng.next_u64() % 4 {
-                    let at = (rng.next_u64() % n) as usize;
-                    b[at] ^= 1 << (rng.next_u64() % 8);
-                }
-            }
-            1 => b.truncate((rng.next_u64() % n) as usize),
-            2 => {
-                let at = (rng.next_u64() % n) as usize;
-                let v = rng.next_u64().to_le_bytes();
-                for (k, x) in v.iter().enumerate() {
-                    if at + k < b.len() {
-                        b[at + k] = *x;
-                    }
-                }
-            }
-            3 => {
-                let (from, to) = ((rng.next_u64() % n) as usize, (rng.next_u64() % n) as usize);
-                let len = (rng.next_u64() % 64) as usize;
-                let chunk: Vec<u8> = b[from..(from + len).min(b.len())].to_vec();
-                b.splice(to..to, chunk);
-            }
+        let b = match kind {
+            k if k < format::mutate::KINDS => format::mutate::mutate(&good, k, &mut rng),
             // Semantic damage behind valid checksums: edit a section, re-seal.
             _ => {
                 let mut parts = Parts::of(&good);
@@ -311,9 +288,9 @@ fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
                         data[at] = rng.next_u64() as u8;
                     }
                 }
-                b = parts.assemble();
+                parts.assemble()
             }
-        }
+        };
         match format::read(&b) {
             Err(e) => {
                 assert!(!e.to_string().is_empty());

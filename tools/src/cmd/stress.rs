@@ -85,30 +85,8 @@ pub fn run(brdf_inputs: usize, corrupt_files: usize) -> Result<()> {
     let mut rng = SplitMix64(0xbad_f11e);
     let (mut rejected, mut same) = (0usize, 0usize);
     for it in 0..corrupt_files {
-        let mut b = good.clone();
-        let n = b.len() as u64;
-        match rng.next_u64() % 4 {
-            0 => {
-                for _ in 0..1 + rng.next_u64() % 4 {
-                    let at = (rng.next_u64() % n) as usize;
-                    b[at] ^= 1 << (rng.next_u64() % 8);
-                }
-            }
-            1 => b.truncate((rng.next_u64() % n) as usize),
-            2 => {
-                let at = (rng.next_u64() % n) as usize;
-                for (j, x) in rng.next_u64().to_le_bytes().iter().enumerate() {
-                    if at + j < b.len() {
-                        b[at + j] = *x;
-                    }
-                }
-            }
-            _ => {
-                let (from, to) = ((rng.next_u64() % n) as usize, (rng.next_u64() % n) as usize);
-                let chunk: Vec<u8> = b[from..(from + (rng.next_u64() % 64) as usize).min(b.len())].to_vec();
-                b.splice(to..to, chunk);
-            }
-        }
+        let kind = rng.next_u64() % format::mutate::KINDS;
+        let b = format::mutate::mutate(&good, kind, &mut rng);
         match format::read(&b) {
             Err(_) => rejected += 1,
             Ok(m) if m == model => same += 1,

@@ -10,6 +10,7 @@
 //! bump), and reject unknown required ones.
 
 pub mod error;
+pub mod mutate;
 pub mod reader;
 pub mod writer;
 
