@@ -227,8 +227,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let ref_size = format!("{0}x{0}", p.ref_size);
     let res_heads: String = p.resolutions.iter().map(|(w, h)| format!(" GPU ms {w}x{h} |")).collect();
     let res_rule: String = p.resolutions.iter().map(|_| "---|").collect();
-    let mut table = format!("| preset | generate (s) | bake (s) | training renders (s) | fitting (s) | flyaways (s) | prefilter (s) | volume (MB) | model (MB) | held-out RMSE (median) | reference view RMSE | reference view FLIP |{res_heads}\n|---|---|---|---|---|---|---|---|---|---|---|---|{res_rule}\n");
+    let mut table = format!("| preset | generate (s) | bake (s) | training renders (s) | fitting (s) | flyaways (s) | prefilter (s) | reference view (s) | volume (MB) | model (MB) | held-out RMSE (median) | reference view RMSE | reference view FLIP |{res_heads}\n|---|---|---|---|---|---|---|---|---|---|---|---|---|{res_rule}\n");
     let mut sweeps: Vec<Sweep> = Vec::new();
+    // For the comparison with the paper: frame times, sizes, bake and reference times.
+    let (mut frame_ms, mut sizes, mut bakes, mut refs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut speed = String::new();
     for (pi, preset) in presets.iter().enumerate() {
         let vol = args.out.join(preset);
@@ -264,9 +266,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
         }
         let input = bake["input_bytes"].as_f64().unwrap_or(0.0);
         let model_bytes = std::fs::metadata(&model_path)?.len() as f64;
+        frame_ms.push(ms);
+        sizes.push((model_bytes / 1e6, input / 1e6));
+        bakes.push(bake["total_seconds"].as_f64().unwrap_or(t_bake));
+        refs.push(t_ref);
         let _ = writeln!(
             table,
-            "| {preset} | {t_gen:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} | {:.3} | {:.1}% | {:.1}% | {flip:.3} |{res_cells}",
+            "| {preset} | {t_gen:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {t_ref:.1} | {:.2} | {:.3} | {:.1}% | {:.1}% | {flip:.3} |{res_cells}",
             bake["total_seconds"].as_f64().unwrap_or(t_bake),
             stage("training renderings"),
             stage("clustering and fitting") + stage("per-texel refinement"),
@@ -356,12 +362,23 @@ pub fn run(args: BenchArgs) -> Result<()> {
             md.push('\n');
         }
     }
-    md.push_str(
-        "## Beside the paper (Table 1)\n\n| | paper (GTX 1080 Ti, 1k² tiles) | here |\n|---|---|---|\n\
-         | frame time | 24–31 ms | see above (device named; a software driver is not a GPU) |\n\
-         | model size | 25–41 MB from 0.5–1.9 GB volumes | see the table (small volumes) |\n\
-         | bake | 20–40 h | see the table (2 cores) |\n\
-         | reference frame | 52–106 min | the `reference_spp` sweep's times (converged ≈ 1% noise needs ~4×(noise/1%)² more) |\n",
+    let range = |v: &[f64]| {
+        let (lo, hi) = v.iter().fold((f64::INFINITY, 0.0f64), |(a, b), x| (a.min(*x), b.max(*x)));
+        (lo, hi)
+    };
+    let (f0, f1) = range(&frame_ms);
+    let (m0, m1) = range(&sizes.iter().map(|s| s.0).collect::<Vec<_>>());
+    let (v0, v1) = range(&sizes.iter().map(|s| s.1).collect::<Vec<_>>());
+    let (b0, b1) = range(&bakes);
+    let (r0, r1) = range(&refs);
+    let _ = write!(
+        md,
+        "## Beside the paper (Table 1)\n\n| | paper (GTX 1080 Ti, 1k² tiles, 1280×720) | here ({}, {} volumes) |\n|---|---|---|\n\
+         | frame time | 24–31 ms | {f0:.0}–{f1:.0} ms at {}² ({}) |\n\
+         | model size | 25–41 MB from 0.5–1.9 GB volumes | {m0:.2}–{m1:.2} MB from {v0:.2}–{v1:.2} MB |\n\
+         | bake | 20–40 h | {b0:.0}–{b1:.0} s (2 cores) |\n\
+         | reference frame | 52–106 min | {r0:.0}–{r1:.0} s at {} spp, {}² (the `reference_spp` sweep gives its noise; 1% needs ~(noise/1%)² times the samples) |\n",
+        info.name, p.size, p.ref_size, info.kind, p.ref_spp, p.ref_size
     );
     std::fs::write(args.out.join("summary.md"), md)?;
     println!("wrote {}", args.out.join("summary.md").display());
