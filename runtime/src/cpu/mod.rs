@@ -30,7 +30,7 @@ pub mod shading;
 use glam::Vec3;
 
 pub use edits::{Edit, EditMask, Edits};
-pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats, validate_render};
+pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats, validate_render, validate_view};
 
 use crate::hybrid::ModelError;
 use crate::scene::{CameraError, LightError};

@@ -419,6 +419,12 @@ impl<'a> Scene<'a> {
 /// whether the lights are shadowed (the options, or the model's fit).
 pub fn validate_render(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<bool, CpuRenderError> {
     model.validate()?;
+    validate_view(model, camera, lights, options)
+}
+
+/// [`validate_render`] for a model already validated (the GPU pass validates it once, at
+/// upload): the camera, lights and options only, O(lights) — cheap enough per frame.
+pub fn validate_view(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<bool, CpuRenderError> {
     camera.validate()?;
     for light in lights {
         light.validate()?;

@@ -8,15 +8,15 @@
 //! ([`Variant`]), so a scene pays only for what it uses; pipelines are built per variant
 //! on first use and kept.
 //!
-//! Options and validation are the CPU renderer's ([`CpuRenderOptions`],
-//! [`validate_render`]); the image and [`RenderStats`] come back as the CPU's do.
+//! Options and validation are the CPU renderer's ([`CpuRenderOptions`]; the model is
+//! validated once at upload, each frame's view by [`validate_view`]); the image and [`RenderStats`] come back as the CPU's do.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use glam::{Vec2, Vec3};
 
-use crate::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, validate_render};
+use crate::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, validate_view};
 use crate::hybrid::HybridModel;
 use crate::hybrid::gpu_layout::{GPU_MAX_LIGHTS, GpuCamera, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
 use crate::image::Image;
@@ -240,7 +240,7 @@ impl HybridPass {
     /// alive until the frame that records it has completed.
     #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
     pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<MeshDraw, GpuRenderError> {
-        let shadows = validate_render(&model.model, camera, lights, options)?;
+        let shadows = validate_view(&model.model, camera, lights, options)?;
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
@@ -342,7 +342,7 @@ impl HybridPass {
     /// renderer's; `options.periodic` must match the upload). `variant` overrides the
     /// specialization (tests and benchmarks of the skips); None: what the scene needs.
     pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
-        let shadows = validate_render(&model.model, camera, lights, options)?;
+        let shadows = validate_view(&model.model, camera, lights, options)?;
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
