@@ -88,7 +88,7 @@ pub fn evaluate_view(volume: &FabricVolume, medium: &TracedMedium, model: &Hybri
     let (camera, light) = view(volume, pair, kind, pixels);
     let t = Instant::now();
     let [sa, sb] = half_seeds(seed);
-    let half = |s| crate::reference::render(medium, &camera, &light, &RenderSettings { spp: (spp / 2).max(1), seed: s, ..Default::default() }, None).map(|(i, _)| i);
+    let half = |s| crate::reference::render(medium, &camera, &(&light).into(), &RenderSettings { spp: (spp / 2).max(1), seed: s, ..Default::default() }, None).map(|(i, _)| i);
     let (a, b) = (half(sa)?, half(sb)?);
     let mut reference = Image::new(a.width, a.height);
     for (k, p) in reference.pixels.iter_mut().enumerate() {

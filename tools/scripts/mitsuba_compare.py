@@ -10,8 +10,8 @@ How to run (from the repository root):
     python3 tools/scripts/mitsuba_compare.py bench            # paths/s, side by side
 
 `agree` renders a small procedural woven fabric (or --fabric DIR) from several views
-(orthographic and perspective cameras, directional and point lights, full multiple
-scattering, single scattering, nearest lookup) with both renderers, twice each with
+(orthographic and perspective cameras, directional and point lights, an environment
+map, full multiple scattering, single scattering, nearest lookup) with both renderers, twice each with
 independent seeds, and checks
   - image means within 1% (|mean_ours / mean_mitsuba - 1| < 0.01), and
   - per-pixel differences within the noise: RMS(ours - mitsuba) is compared with
@@ -37,6 +37,10 @@ Scene mapping (docs/DESIGN.md section 8; everything else is identical):
     perspective fov = --fov with fov_axis = "x"; film with a box reconstruction filter;
   - lights: `directional` with direction = -(--light-dir) and irradiance = --irradiance;
     `point` with position = --point-light and intensity = --intensity;
+  - environment (views with "envmap"): `envmap` with filename = --envmap, scale =
+    --envmap-scale and to_world = rotate([0, 0, 1], --envmap-rotate) . rotate([1, 0, 0], 90)
+    (the map's Y up becomes our Z up); the map the script writes is smooth at the texel
+    scale, since Mitsuba interpolates it bilinearly and we look up the nearest texel;
   - integrator: `volpath` with max_depth = --max-depth (-1 when unlimited), rr_depth 5.
 """
 
@@ -258,7 +262,9 @@ def fabric_flags(v):
     fmt = lambda a: ",".join(f"{float(c):.9g}" for c in a)
     flags = ["--origin", fmt(v["origin"]), "--target", fmt(v["target"]), "--up", fmt(v["up"])]
     flags += ["--extent", f"{v['extent']:.9g}"] if "extent" in v else ["--fov", f"{v['fov']:.9g}"]
-    if "point_light" in v:
+    if "envmap" in v:
+        flags += ["--envmap", str(v["envmap"]), "--envmap-rotate", f"{v.get('envmap_rotate', 0.0):.9g}", "--envmap-scale", f"{v.get('envmap_scale', 1.0):.9g}"]
+    elif "point_light" in v:
         flags += ["--point-light", fmt(v["point_light"]), "--intensity", f"{v.get('intensity', 1.0):.9g}"]
     else:
         flags += ["--light-dir", fmt(v["light_dir"]), "--irradiance", f"{v.get('irradiance', 1.0):.9g}"]
@@ -280,7 +286,10 @@ def mitsuba_scene(mi, v, inputs, bbox, mat, width, height, spp):
     else:
         sensor = {"type": "perspective", "to_world": look, "fov": float(v["fov"]), "fov_axis": "x", "film": film, "sampler": sampler,
                   "near_clip": 1e-3, "far_clip": 1e5}
-    if "point_light" in v:
+    if "envmap" in v:
+        emitter = {"type": "envmap", "filename": str(v["envmap"]), "scale": float(v.get("envmap_scale", 1.0)),
+                   "to_world": T().rotate([0, 0, 1], float(v.get("envmap_rotate", 0.0))) @ T().rotate([1, 0, 0], 90.0)}
+    elif "point_light" in v:
         emitter = {"type": "point", "position": list(map(float, v["point_light"])), "intensity": {"type": "rgb", "value": float(v.get("intensity", 1.0))}}
     else:
         emitter = {"type": "directional", "direction": list(map(float, -np.asarray(v["light_dir"]))), "irradiance": {"type": "rgb", "value": float(v.get("irradiance", 1.0))}}
@@ -339,7 +348,30 @@ AGREE_VIEWS = [
     {"name": "persp-point", "origin": (0.5, -0.9, 0.9), "target": (0.5, 0.5, 0.05), "up": (0, 0, 1), "fov": 45.0, "point_light": (0.9, -0.2, 0.8), "intensity": 1.0},
     {"name": "persp-directional", "origin": (-0.6, 0.3, 0.8), "target": (0.5, 0.5, 0.05), "up": (0, 0, 1), "fov": 50.0, "light_angles": (60.0, 90.0)},
     {"name": "ortho-point", "view_angles": (30.0, -90.0), "point_light": (0.2, 0.5, 0.6), "intensity": 0.5},
+    {"name": "ortho-oblique-envmap", "view_angles": (50.0, 30.0), "envmap": "ENV", "envmap_rotate": 30.0},
+    {"name": "ortho-top-envmap-single", "view_angles": (0.0, 0.0), "envmap": "ENV", "envmap_rotate": -75.0, "max_depth": 2},
+    {"name": "persp-envmap", "origin": (-0.6, 0.3, 0.8), "target": (0.5, 0.5, 0.05), "up": (0, 0, 1), "fov": 50.0, "envmap": "ENV", "envmap_scale": 2.0},
 ]
+
+
+def write_envmap(path, width=256, height=128):
+    """A map with no symmetry that would hide a wrong orientation: a sky gradient, a
+    colour ramp in azimuth (fading at the poles) and a bright blob (sigma 12 deg) toward local (theta 55, phi 70),
+    smooth at the texel scale (Mitsuba filters bilinearly, we look up the nearest texel)."""
+    import mitsuba as mi
+    v, u = np.meshgrid((np.arange(height) + 0.5) / height, (np.arange(width) + 0.5) / width, indexing="ij")
+    theta, phi = v * np.pi, u * 2 * np.pi
+    d = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], -1)
+    bt, bp = np.radians(55.0), np.radians(70.0)
+    b = np.array([np.sin(bt) * np.sin(bp), np.cos(bt), -np.sin(bt) * np.cos(bp)])
+    ang = np.arccos(np.clip(d @ b, -1, 1))
+    blob = 6.0 * np.exp(-0.5 * (ang / np.radians(12.0)) ** 2)
+    up = np.clip(d[..., 1], 0, 1)
+    # Azimuthal terms fade at the poles (times sin theta), so the map is continuous there.
+    st = np.sin(theta)
+    img = np.stack([0.2 + 0.3 * up + 0.1 * st * np.sin(phi), 0.25 + 0.2 * up + 0.1 * st * np.cos(phi), 0.15 + 0.4 * up], -1) + blob[..., None] * np.array([1.0, 0.8, 0.5])
+    mi.Bitmap(img.astype(np.float32)).write(str(path))
+    return path
 
 
 def small_fabric(tmp, dims=(48, 48, 12)):
@@ -369,8 +401,13 @@ def cmd_agree(args):
     results, ok = [], True
     print(f"fabric {fabric} {dims[0]}x{dims[1]}x{dims[2]}, {w}x{h}, {args.spp} spp x 2 seeds per renderer, Mitsuba {mi.__version__} {args.variant}")
     print(f"{'view':30s} {'mean ours':>11s} {'mean mitsuba':>12s} {'rel diff':>9s} {'noise(mean)':>11s} {'RMS/noise':>9s} {'relRMSE':>8s}  verdict")
+    env = write_envmap(tmp / "env.exr")
     for view in AGREE_VIEWS:
+        if args.only and args.only not in view["name"]:
+            continue
         v = resolve_view(view, bbox)
+        if v.get("envmap") == "ENV":
+            v["envmap"] = env
         v["phase"] = "sggx" if args.phase == "native" else "sggx_fixed"
         a1, _ = render_fabric(binary, fabric, v, w, h, args.spp, 1, tmp / "a1.exr")
         a2, _ = render_fabric(binary, fabric, v, w, h, args.spp, 2, tmp / "a2.exr")
@@ -461,6 +498,7 @@ def main():
     a.add_argument("--spp", type=int, default=256)
     a.add_argument("--size", type=parse_size, default=(48, 48))
     a.add_argument("--variant", default="llvm_ad_rgb")
+    a.add_argument("--only", help="run only the views whose name contains this")
     b = sub.add_parser("bench", help="paths per second on the 256x256x48 twill")
     b.add_argument("--fabric", help="fabric directory (default: a procedural 256x256x48 twill)")
     b.add_argument("--spp", type=int, default=16)

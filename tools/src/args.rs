@@ -4,7 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use fabric_runtime::scene::{Aabb, Camera, Light, Projection, direction_from_angles};
+use fabric_runtime::scene::{Aabb, Camera, EnvMap, EnvMapOptions, Light, Projection, Sky, direction_from_angles};
 use glam::Vec3;
 
 /// Parses "X,Y,Z".
@@ -175,6 +175,11 @@ impl CameraArgs {
 }
 
 impl LightArgs {
+    /// Whether any light flag was given.
+    pub fn given(&self) -> bool {
+        self.point_light.is_some() || self.light_dir.is_some() || self.light_angles.is_some()
+    }
+
     /// The light. Without flags: a unit-irradiance directional light from θ = 30°, φ = −60°.
     pub fn light(&self) -> Result<Light> {
         let light = match (self.point_light, self.light_dir, self.light_angles) {
@@ -186,6 +191,39 @@ impl LightArgs {
         };
         light.validate().context("invalid light flags")?;
         Ok(light)
+    }
+}
+
+/// Environment lighting flags (runtime/src/scene/envmap.rs gives the orientation, which
+/// is Mitsuba 3's `envmap` placed Z up).
+#[derive(Args, Clone, Debug, Default)]
+pub struct EnvArgs {
+    /// Environment map: an equirectangular .exr (linear RGB) or .png, or `sky` for the
+    /// built-in procedural sky. With it, a delta light is added only if a light flag is given.
+    #[arg(long)]
+    pub envmap: Option<String>,
+    /// Multiplies the map's radiance (Mitsuba's `scale`).
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub envmap_scale: f32,
+    /// Turns the map about +Z (degrees).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub envmap_rotate: f32,
+}
+
+impl EnvArgs {
+    /// The map, loaded and checked, or None without `--envmap`.
+    pub fn env_map(&self) -> Result<Option<EnvMap>> {
+        let options = EnvMapOptions { scale: self.envmap_scale, rotate_deg: self.envmap_rotate };
+        match self.envmap.as_deref() {
+            None => {
+                if self.envmap_scale != 1.0 || self.envmap_rotate != 0.0 {
+                    bail!("--envmap-scale and --envmap-rotate need --envmap FILE|sky");
+                }
+                Ok(None)
+            }
+            Some("sky") => Ok(Some(Sky::default().env_map(options)?)),
+            Some(path) => Ok(Some(EnvMap::load(std::path::Path::new(path), options).with_context(|| format!("cannot use --envmap {path}"))?)),
+        }
     }
 }
 

@@ -82,3 +82,42 @@ fn bad_input_is_a_clear_error() {
         assert!(stderr.contains(needle) && !stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+#[test]
+fn reference_lights_with_an_environment_map() {
+    let dir = tiny_fabric();
+    // The built-in sky, and the same sky written to an EXR and read back: one image.
+    let sky = fabric_runtime::scene::Sky::default().to_image();
+    let sky_exr = tmp("sky.exr");
+    sky.write(&sky_exr, 1.0).unwrap();
+    let run = |map: &str, extra: &[&str], out: &std::path::Path| {
+        let o = fabric().arg("reference").arg(&dir).args(["--view-angles", "30,20", "--size", "16x16", "--spp", "4", "--envmap", map]).args(extra).arg("--out").arg(out).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8_lossy(&o.stdout).to_string(), Image::read(out, 1.0).unwrap())
+    };
+    let (text, a) = run("sky", &[], &tmp("env_a.exr"));
+    assert!(text.contains("environment built-in sky (512x256"), "{text}");
+    let (_, b) = run(sky_exr.to_str().unwrap(), &[], &tmp("env_b.exr"));
+    assert_eq!(a, b, "the built-in sky and its EXR give the same image");
+    assert!(a.mean() > 0.0 && a.first_non_finite().is_none());
+    // Scale is linear; rotation changes the image; a delta light adds to the map.
+    let (_, c) = run("sky", &["--envmap-scale", "2"], &tmp("env_c.exr"));
+    assert!((c.mean() / a.mean() - 2.0).abs() < 1e-4, "{} vs {}", c.mean(), a.mean());
+    let (_, d) = run("sky", &["--envmap-rotate", "90"], &tmp("env_d.exr"));
+    assert_ne!(a, d);
+    let (text, e) = run("sky", &["--light-angles", "30,0"], &tmp("env_e.exr"));
+    assert!(text.contains("plus the delta light") && e.mean() > a.mean(), "{text}");
+    // Bad maps and flags are refused with what and where.
+    let bad = tmp("bad.exr");
+    Image::from_fn(8, 4, |x, _| if x == 5 { Vec3::new(-1.0, 0.0, 0.0) } else { Vec3::ONE }).write(&bad, 1.0).unwrap();
+    for (extra, needle) in [
+        (vec!["--envmap", bad.to_str().unwrap()], "texel (5, 0)"),
+        (vec!["--envmap", "/nonexistent/map.exr"], "/nonexistent/map.exr"),
+        (vec!["--envmap", "sky", "--envmap-scale", "-1"], "--envmap-scale"),
+        (vec!["--envmap-rotate", "10"], "need --envmap"),
+    ] {
+        let o = fabric().arg("reference").arg(&dir).args(["--size", "8x8", "--spp", "1"]).args(&extra).arg("--out").arg(tmp("never.exr")).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && stderr.contains(needle), "{extra:?}: {stderr}");
+    }
+}

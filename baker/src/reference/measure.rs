@@ -25,7 +25,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::ReferenceError;
-use super::integrator::{PathSettings, PathStats, radiance};
+use super::integrator::{Lighting, PathSettings, PathStats, radiance};
 use super::medium::{Lookup, MediumOptions};
 use super::rng::{Rng, mix64};
 use super::tracking::TracedMedium;
@@ -179,7 +179,7 @@ impl<'v> MeasureScene<'v> {
     fn sample(&self, x: usize, y: usize, wo: Vec3, light: &Light, rng: &mut Rng, stats: &mut PathStats) -> Vec3 {
         let (u, v) = rng.next_2d();
         let (origin, d) = self.sample_ray(x, y, u, v, wo);
-        radiance(&self.medium, light, &self.path, origin, d, rng, stats)
+        radiance(&self.medium, &Lighting::from(light), &self.path, origin, d, rng, stats)
     }
 }
 

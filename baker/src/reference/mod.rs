@@ -11,8 +11,10 @@ pub mod sggx;
 pub mod tracking;
 #[cfg(test)]
 mod validation;
+#[cfg(test)]
+mod validation_env;
 
-pub use integrator::{PathSettings, PathStats};
+pub use integrator::{Lighting, PathSettings, PathStats};
 pub use measure::MeasureScene;
 pub use medium::{EmptyOrientation, Lookup, MediumOptions};
 pub use render::{RenderSettings, RenderStats, render};

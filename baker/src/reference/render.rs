@@ -9,13 +9,13 @@
 use std::time::Instant;
 
 use fabric_runtime::image::Image;
-use fabric_runtime::scene::{Camera, Light};
+use fabric_runtime::scene::Camera;
 use glam::{DVec3, Vec3};
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::ReferenceError;
-use super::integrator::{PathSettings, PathStats, radiance};
+use super::integrator::{Lighting, PathSettings, PathStats, radiance};
 use super::rng::Rng;
 use super::tracking::TracedMedium;
 
@@ -58,12 +58,14 @@ impl RenderSettings {
     }
 }
 
-/// Renders the medium through `camera` under `light`. `progress` (if any) advances by
+/// Renders the medium through `camera` under `lighting` (`(&light).into()` for one light). `progress` (if any) advances by
 /// one per finished row.
-pub fn render(medium: &TracedMedium<'_>, camera: &Camera, light: &Light, settings: &RenderSettings, progress: Option<&ProgressBar>) -> Result<(Image, RenderStats), ReferenceError> {
+pub fn render(medium: &TracedMedium<'_>, camera: &Camera, lighting: &Lighting<'_>, settings: &RenderSettings, progress: Option<&ProgressBar>) -> Result<(Image, RenderStats), ReferenceError> {
     settings.validate()?;
     camera.validate()?;
-    light.validate()?;
+    if let Some(light) = lighting.light {
+        light.validate()?;
+    }
     let start = Instant::now();
     let (w, h) = (camera.width, camera.height);
     let rows: Vec<(Vec<Vec3>, PathStats)> = (0..h)
@@ -78,7 +80,7 @@ pub fn render(medium: &TracedMedium<'_>, camera: &Camera, light: &Light, setting
                         let mut rng = Rng::new(settings.seed, pixel, s as u64);
                         let (jx, jy) = rng.next_2d();
                         let ray = camera.ray(x as f32 + jx, y as f32 + jy);
-                        sum += radiance(medium, light, &settings.path, ray.o, ray.d, &mut rng, &mut stats).as_dvec3();
+                        sum += radiance(medium, lighting, &settings.path, ray.o, ray.d, &mut rng, &mut stats).as_dvec3();
                     }
                     (sum / settings.spp as f64).as_vec3()
                 })

@@ -10,7 +10,7 @@ use fabric_runtime::image::Image;
 use fabric_runtime::scene::{Camera, Light, Projection, direction_from_angles};
 use glam::Vec3;
 
-use super::integrator::{PathSettings, PathStats, radiance};
+use super::integrator::{Lighting, PathSettings, PathStats, radiance};
 use super::measure::MeasureScene;
 use super::medium::{Lookup, MediumOptions};
 use super::render::{RenderSettings, render};
@@ -21,7 +21,7 @@ use crate::volume::{Aabb, FabricVolume, MaterialParams, Voxel};
 
 /// Mean and standard error of the mean over all pixel-channel means of an image whose
 /// pixels are independent estimates.
-fn mean_and_stderr(img: &Image) -> (f64, f64) {
+pub(super) fn mean_and_stderr(img: &Image) -> (f64, f64) {
     let v: Vec<f64> = img.pixels.iter().map(|p| (p.x + p.y + p.z) as f64 / 3.0).collect();
     let n = v.len() as f64;
     let mean = v.iter().sum::<f64>() / n;
@@ -29,7 +29,7 @@ fn mean_and_stderr(img: &Image) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
-fn homogeneous(dims: [usize; 3], thickness: f32, rho: f32, scale: f32, albedo: f32, fiber: Vec3, roughness: f32) -> FabricVolume {
+pub(super) fn homogeneous(dims: [usize; 3], thickness: f32, rho: f32, scale: f32, albedo: f32, fiber: Vec3, roughness: f32) -> FabricVolume {
     let mut v = FabricVolume::new(dims, Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, thickness)), MaterialParams { density_scale: scale, roughness });
     for z in 0..dims[2] {
         for y in 0..dims[1] {
@@ -43,7 +43,7 @@ fn homogeneous(dims: [usize; 3], thickness: f32, rho: f32, scale: f32, albedo: f
 
 /// Heterogeneous, anisotropic: random densities (30% empty), random fibers lying
 /// mostly in the sheet's plane, albedo `albedo`.
-fn random_fabric(dims: [usize; 3], thickness: f32, scale: f32, albedo: Vec3, seed: u64) -> FabricVolume {
+pub(super) fn random_fabric(dims: [usize; 3], thickness: f32, scale: f32, albedo: Vec3, seed: u64) -> FabricVolume {
     let mut v = FabricVolume::new(dims, Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, thickness)), MaterialParams { density_scale: scale, roughness: 0.3 });
     let mut rng = Rng::new(seed, 0, 0);
     for z in 0..dims[2] {
@@ -63,7 +63,7 @@ fn random_fabric(dims: [usize; 3], thickness: f32, scale: f32, albedo: Vec3, see
 /// a = k·σ(ω)/|μ| per direction and σ_s(ω_i)·f_p(ω_i → ω_o) = α·k·D(ω_h)/4:
 ///   reflection:   L = α k D(ω_h) / (4 μ_o) · (1 − e^{−H(a_i + a_o)}) / (a_i + a_o)
 ///   transmission: L = α k D(ω_h) / (4 |μ_o|) · (e^{−H a_o} − e^{−H a_i}) / (a_i − a_o)
-fn single_scattering(s: &Sggx, k: f64, albedo: f64, h: f64, wi: Vec3, wo: Vec3) -> f64 {
+pub(super) fn single_scattering(s: &Sggx, k: f64, albedo: f64, h: f64, wi: Vec3, wo: Vec3) -> f64 {
     let d = s.ndf((wi + wo).normalize()) as f64;
     let (mu_i, mu_o) = (wi.z as f64, wo.z as f64);
     let a_i = k * s.projected_area(wi) as f64 / mu_i;
@@ -138,7 +138,7 @@ fn white_furnace_conserves_energy() {
         let (u, w) = rng.next_2d();
         let (o, d) = scene.sample_ray(tx.min(7), ty.min(7), u, w, wo.normalize());
         // Each hemisphere gets half the samples: π·E[L] per hemisphere = 2π·E[L] overall.
-        let x = 2.0 * core::f64::consts::PI * radiance(medium, &light, &settings, o, d, &mut rng, &mut stats).x as f64;
+        let x = 2.0 * core::f64::consts::PI * radiance(medium, &Lighting::from(&light), &settings, o, d, &mut rng, &mut stats).x as f64;
         sum += x;
         sum2 += x * x;
     }
@@ -221,7 +221,7 @@ fn output_is_identical_for_any_thread_count() {
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| {
-            let (img, stats) = render(&traced, &camera, &light, &settings, None).unwrap();
+            let (img, stats) = render(&traced, &camera, &Lighting::from(&light), &settings, None).unwrap();
             let (texel, _) = scene.measure_texel((3, 5), &pairs, 300, 4).unwrap();
             let (m, _) = scene.render_image(pairs[0].0, pairs[0].1, 3, 4).unwrap();
             (img, stats.paths, texel, m)
@@ -309,7 +309,7 @@ fn large_fabric_renders_within_memory_budget() {
     }
     let traced = TracedMedium::new(&v, MediumOptions { periodic: true, ..Default::default() }).unwrap();
     let camera = Camera::orbit_orthographic(30.0, 20.0, Vec3::new(2.0, 2.0, 0.5), 4.0, 4.0, 64, 64);
-    let (img, stats) = render(&traced, &camera, &Light::directional(direction_from_angles(40.0, -60.0), Vec3::ONE), &RenderSettings { spp: 2, ..Default::default() }, None).unwrap();
+    let (img, stats) = render(&traced, &camera, &Lighting::from(&Light::directional(direction_from_angles(40.0, -60.0), Vec3::ONE)), &RenderSettings { spp: 2, ..Default::default() }, None).unwrap();
     let peak = peak_rss_bytes().unwrap_or(0);
     eprintln!("1024x1024x128: packed volume {:.2} GB, peak RSS {:.2} GB, {:.0} paths/s, mean {}", v.memory_bytes() as f64 / 1e9, peak as f64 / 1e9, stats.paths_per_second(), img.mean());
     assert!(img.mean() > 0.0 && img.first_non_finite().is_none());

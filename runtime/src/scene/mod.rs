@@ -1,13 +1,17 @@
-//! Scene description shared by every renderer: cameras, lights, rays, base meshes.
+//! Scene description shared by every renderer: cameras, lights, environment maps, rays, base meshes.
 
 pub mod aabb;
 pub mod camera;
+pub mod envmap;
 pub mod light;
 pub mod mesh;
 pub mod ray;
+pub mod sky;
 
 pub use aabb::Aabb;
 pub use camera::{Camera, CameraError, CameraFrame, Projection, direction_from_angles};
+pub use envmap::{EnvMap, EnvMapError, EnvMapOptions, EnvSample};
 pub use mesh::{Mesh, MeshError, Vertex};
 pub use light::{Light, LightError, LightSample};
 pub use ray::Ray;
+pub use sky::Sky;

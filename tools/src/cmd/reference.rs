@@ -10,11 +10,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use fabric_baker::reference::{Lookup, MediumOptions, PathSettings, RenderSettings, TracedMedium, render};
+use fabric_baker::reference::{Lighting, Lookup, MediumOptions, PathSettings, RenderSettings, TracedMedium, render};
 use fabric_baker::volume::load_fabric_with_progress;
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::args::{CameraArgs, LightArgs, MaterialArgs, OutputArgs};
+use crate::args::{CameraArgs, EnvArgs, LightArgs, MaterialArgs, OutputArgs};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum LookupArg {
@@ -62,6 +63,11 @@ pub struct ReferenceArgs {
     pub camera: CameraArgs,
     #[command(flatten)]
     pub light: LightArgs,
+    #[command(flatten)]
+    pub env: EnvArgs,
+    /// Camera rays that miss the fabric see black instead of the environment map.
+    #[arg(long)]
+    pub no_background: bool,
     #[command(flatten)]
     pub output: OutputArgs,
 }
@@ -111,7 +117,10 @@ fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
     load_bar.finish_and_clear();
     let load_seconds = t_load.elapsed().as_secs_f64();
     let camera = args.camera.camera(volume.bbox())?;
-    let light = args.light.light()?;
+    let env = args.env.env_map()?;
+    // With a map, the delta light is there only when asked for.
+    let light = if env.is_none() || args.light.given() { Some(args.light.light()?) } else { None };
+    let lighting = Lighting { light: light.as_ref(), env: env.as_ref(), background: !args.no_background };
     let lookup = match args.lookup {
         LookupArg::Trilinear => Lookup::Trilinear,
         LookupArg::Nearest => Lookup::Nearest,
@@ -137,10 +146,13 @@ fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
             format!("{:?}", args.lookup).to_lowercase(),
             if args.periodic { ", periodic sheet" } else { "" }
         );
+        if let Some(env) = &env {
+            println!("environment {} ({}x{}, scale {}, rotated {}°, ∫L dΩ = {:.4}){}", env.name().display(), env.width(), env.height(), args.env.envmap_scale, args.env.envmap_rotate, env.integral().dot(Vec3::ONE) / 3.0, if light.is_some() { " plus the delta light" } else { "" });
+        }
     }
     let progress = if args.json { ProgressBar::hidden() } else { ProgressBar::new(camera.height as u64) };
     progress.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} elapsed, ETA {eta}").unwrap_or_else(|_| ProgressStyle::default_bar()));
-    let (image, stats) = render(&medium, &camera, &light, &settings, Some(&progress))?;
+    let (image, stats) = render(&medium, &camera, &lighting, &settings, Some(&progress))?;
     progress.finish_and_clear();
     image.write(&args.output.out, args.output.exposure).with_context(|| format!("cannot write {}", args.output.out.display()))?;
     let report = RunReport {
