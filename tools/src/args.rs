@@ -196,7 +196,7 @@ impl LightArgs {
 
 /// Environment lighting flags (runtime/src/scene/envmap.rs gives the orientation, which
 /// is Mitsuba 3's `envmap` placed Z up).
-#[derive(Args, Clone, Debug, Default)]
+#[derive(Args, Clone, Debug)]
 pub struct EnvArgs {
     /// Environment map: an equirectangular .exr (linear RGB) or .png, or `sky` for the
     /// built-in procedural sky. With it, a delta light is added only if a light flag is given.
@@ -208,6 +208,15 @@ pub struct EnvArgs {
     /// Turns the map about +Z (degrees).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub envmap_rotate: f32,
+    /// Rays that miss the fabric see black instead of the map.
+    #[arg(long)]
+    pub no_background: bool,
+}
+
+impl Default for EnvArgs {
+    fn default() -> Self {
+        EnvArgs { envmap: None, envmap_scale: 1.0, envmap_rotate: 0.0, no_background: false }
+    }
 }
 
 impl EnvArgs {

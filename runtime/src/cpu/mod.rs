@@ -21,6 +21,7 @@
 //! ```
 
 pub mod edits;
+pub mod env_shading;
 pub mod flyaways;
 pub mod heightfield;
 pub mod probe;
@@ -30,10 +31,11 @@ pub mod shading;
 use glam::Vec3;
 
 pub use edits::{Edit, EditMask, Edits};
+pub use env_shading::texel_env_response;
 pub use render::{LevelMix, PixelTrace, Scene, render, render_with_progress, render_with_stats, validate_render, validate_view};
 
 use crate::hybrid::ModelError;
-use crate::scene::{CameraError, LightError};
+use crate::scene::{CameraError, Light, LightError};
 
 /// Which level of the mip chain shades a pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,6 +86,41 @@ pub struct CpuRenderOptions {
     pub coarse_relief: bool,
     /// Appearance edits (identity by default).
     pub edits: Edits,
+    /// Environment lighting (env_shading.rs): the prefiltered map's SG lookups plus its
+    /// extracted sources as extra directional lights; where rays miss the tile they see
+    /// the map instead of `background` (unless `EnvLight::background` is off).
+    pub env: Option<EnvLight>,
+}
+
+/// A shared prefiltered environment (compared by identity: two options are equal when
+/// they light with the same prefiltered map), and whether rays that miss see it.
+#[derive(Clone, Debug)]
+pub struct EnvLight {
+    pub prefiltered: std::sync::Arc<crate::scene::PrefilteredEnv>,
+    pub background: bool,
+}
+
+impl EnvLight {
+    pub fn new(prefiltered: crate::scene::PrefilteredEnv) -> EnvLight {
+        EnvLight { prefiltered: std::sync::Arc::new(prefiltered), background: true }
+    }
+}
+
+impl PartialEq for EnvLight {
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.prefiltered, &other.prefiltered) && self.background == other.background
+    }
+}
+
+impl CpuRenderOptions {
+    /// The lights a render shades: the caller's, then the environment's sources.
+    pub fn lights_with_env(&self, lights: &[Light]) -> Vec<Light> {
+        let mut all = lights.to_vec();
+        if let Some(env) = &self.env {
+            all.extend_from_slice(&env.prefiltered.lights);
+        }
+        all
+    }
 }
 
 impl Default for CpuRenderOptions {
@@ -99,6 +136,7 @@ impl Default for CpuRenderOptions {
             flyaways: true,
             coarse_relief: false,
             edits: Edits::default(),
+            env: None,
         }
     }
 }

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
+use super::env_shading::texel_env_response;
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
@@ -282,7 +283,11 @@ impl<'a> Scene<'a> {
     /// it meets the surface (the top plane if it misses): the height field is marched
     /// once, the flyaways and the surface are shaded per level and blended.
     pub fn trace_mixed(&self, ray: &Ray, choose: &dyn Fn(f32) -> LevelMix) -> PixelTrace {
-        let mut out = PixelTrace { radiance: self.options.background, ..Default::default() };
+        let background = match &self.options.env {
+            Some(e) if e.background => e.prefiltered.map.eval(ray.d),
+            _ => self.options.background,
+        };
+        let mut out = PixelTrace { radiance: background, ..Default::default() };
         let Some(t_top) = self.enter_top(ray) else {
             return out;
         };
@@ -313,7 +318,7 @@ impl<'a> Scene<'a> {
         out.flyaway_opacity = 1.0 - fly.transmittance;
         out.step_limited |= fly.limited;
         out.shadow_step_limited = fly.shadow_limited;
-        let mut behind = self.options.background;
+        let mut behind = background;
         if let Some(t) = out.surface_t {
             behind = Vec3::ZERO;
             if fly.transmittance > 0.0 {
@@ -344,7 +349,7 @@ impl<'a> Scene<'a> {
                 let p = ray.at(t_in);
                 let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
                 let b = if self.edited { self.edit_at(p).apply(b, false) } else { b };
-                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited))
+                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false)
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
@@ -370,9 +375,11 @@ impl<'a> Scene<'a> {
         let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));
         let radiance = if level == 0 {
             let (i, j) = self.texel_at(p, 0);
-            shade(&edited(l.texel_brdf(i, j)), p, wo, self.lights, self.reading, visible)
+            let b = edited(l.texel_brdf(i, j));
+            shade(&b, p, wo, self.lights, self.reading, visible) + self.env_response(&b, wo, volumetric)
         } else if mix.taps <= 1 {
-            shade_blend(&self.bilinear_texels(p, level).map(|(b, w)| (edited(b), w)), p, wo, self.lights, self.reading, visible)
+            let texels = self.bilinear_texels(p, level).map(|(b, w)| (edited(b), w));
+            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric)).sum::<Vec3>()
         } else {
             let n = mix.taps;
             let mut texels = Vec::with_capacity(4 * n as usize);
@@ -380,9 +387,18 @@ impl<'a> Scene<'a> {
                 let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
                 texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (edited(b), w / n as f32)));
             }
-            shade_blend(&texels, p, wo, self.lights, self.reading, visible)
+            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric)).sum::<Vec3>()
         };
         (radiance, shadow_limited)
+    }
+
+    /// The environment's SG part at a hit (zero without a map). Unshadowed by the
+    /// height field (env_shading.rs states the approximation).
+    fn env_response(&self, b: &TexelBrdf, wo: Vec3, volumetric: bool) -> Vec3 {
+        match &self.options.env {
+            Some(env) => texel_env_response(b, wo, self.reading, volumetric, &env.prefiltered),
+            None => Vec3::ZERO,
+        }
     }
 
     /// One pixel: s×s samples on a regular grid, the levels from the pixel's footprint
@@ -451,8 +467,8 @@ pub fn validate_view(model: &HybridModel, camera: &Camera, lights: &[Light], opt
     })
 }
 
-/// Renders `model` seen by `camera` under `lights`: the CPU reference of the GPU
-/// renderer. Deterministic (no randomness; any thread count gives the same bits).
+/// Renders `model` seen by `camera` under `lights` (and `options.env`, whose sources
+/// join the lights): the CPU reference of the GPU renderer. Deterministic (no randomness; any thread count gives the same bits).
 pub fn render(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<Image, CpuRenderError> {
     render_with_stats(model, camera, lights, options).map(|(image, _)| image)
 }
@@ -465,7 +481,8 @@ pub fn render_with_stats(model: &HybridModel, camera: &Camera, lights: &[Light],
 /// [`render_with_stats`], calling `row_done` (from any thread) as each image row
 /// finishes, for a progress bar.
 pub fn render_with_progress(model: &HybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, row_done: &(dyn Fn() + Sync)) -> Result<(Image, RenderStats), CpuRenderError> {
-    let scene = Scene::new(model, camera, lights, options.clone())?;
+    let lights = options.lights_with_env(lights);
+    let scene = Scene::new(model, camera, &lights, options.clone())?;
     let (w, h) = (camera.width, camera.height);
     let levels = model.levels.len();
     let rows: Vec<(Vec<Vec3>, RenderStats)> = (0..h)

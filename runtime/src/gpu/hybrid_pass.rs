@@ -37,6 +37,8 @@ pub enum GpuRenderError {
     TooManyLights { count: usize },
     #[error("the model was uploaded for a {} tile but the render asks for a {} one", if *.uploaded { "periodic" } else { "clamped" }, if *.uploaded { "clamped" } else { "periodic" })]
     Periodic { uploaded: bool },
+    #[error("environment lighting is drawn by the CPU renderer only so far (use --backend cpu)")]
+    EnvUnsupported,
     #[error("{count} pixel(s) came out NaN or infinite, the first at ({x}, {y}): a bug in the renderer, please report it")]
     NonFinite { count: u32, x: u32, y: u32 },
 }
@@ -241,6 +243,9 @@ impl HybridPass {
     #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
     pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<MeshDraw, GpuRenderError> {
         let shadows = validate_view(&model.model, camera, lights, options)?;
+        if options.env.is_some() {
+            return Err(GpuRenderError::EnvUnsupported);
+        }
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
@@ -343,6 +348,9 @@ impl HybridPass {
     /// specialization (tests and benchmarks of the skips); None: what the scene needs.
     pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
         let shadows = validate_view(&model.model, camera, lights, options)?;
+        if options.env.is_some() {
+            return Err(GpuRenderError::EnvUnsupported);
+        }
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }

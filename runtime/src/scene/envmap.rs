@@ -169,6 +169,20 @@ impl EnvMap {
         &self.name
     }
 
+    /// The rotation about +Z (degrees).
+    pub fn rotate_deg(&self) -> f32 {
+        self.rotate.to_degrees()
+    }
+
+    /// The same placement with other (already scaled) texels, e.g. a map with its sun
+    /// taken out.
+    pub fn with_texels(&self, texels: Vec<Vec3>) -> Result<EnvMap, EnvMapError> {
+        let image = Image { width: self.width, height: self.height, pixels: texels };
+        let mut m = EnvMap::from_image(&image, EnvMapOptions { scale: 1.0, rotate_deg: 0.0 }, &self.name)?;
+        m.rotate = self.rotate;
+        Ok(m)
+    }
+
     /// Radiance of texel (x, y), scale applied.
     pub fn texel(&self, x: u32, y: u32) -> Vec3 {
         self.texels[(y * self.width + x) as usize]

@@ -2,6 +2,8 @@
 
 pub mod aabb;
 pub mod camera;
+pub mod env_lights;
+pub mod env_prefilter;
 pub mod envmap;
 pub mod light;
 pub mod mesh;
@@ -10,6 +12,8 @@ pub mod sky;
 
 pub use aabb::Aabb;
 pub use camera::{Camera, CameraError, CameraFrame, Projection, direction_from_angles};
+pub use env_lights::{ExtractOptions, extract_lights};
+pub use env_prefilter::PrefilteredEnv;
 pub use envmap::{EnvMap, EnvMapError, EnvMapOptions, EnvSample};
 pub use mesh::{Mesh, MeshError, Vertex};
 pub use light::{Light, LightError, LightSample};

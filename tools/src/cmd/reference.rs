@@ -65,9 +65,6 @@ pub struct ReferenceArgs {
     pub light: LightArgs,
     #[command(flatten)]
     pub env: EnvArgs,
-    /// Camera rays that miss the fabric see black instead of the environment map.
-    #[arg(long)]
-    pub no_background: bool,
     #[command(flatten)]
     pub output: OutputArgs,
 }
@@ -120,7 +117,7 @@ fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
     let env = args.env.env_map()?;
     // With a map, the delta light is there only when asked for.
     let light = if env.is_none() || args.light.given() { Some(args.light.light()?) } else { None };
-    let lighting = Lighting { light: light.as_ref(), env: env.as_ref(), background: !args.no_background };
+    let lighting = Lighting { light: light.as_ref(), env: env.as_ref(), background: !args.env.no_background };
     let lookup = match args.lookup {
         LookupArg::Trilinear => Lookup::Trilinear,
         LookupArg::Nearest => Lookup::Nearest,

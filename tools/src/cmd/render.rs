@@ -9,7 +9,7 @@ use fabric_runtime::scene::Mesh;
 use fabric_runtime::vk::{Device, DeviceOptions};
 
 use super::render_cpu::CpuRenderFlags;
-use crate::args::{CameraArgs, LightArgs, MeshSceneArgs, OutputArgs};
+use crate::args::{CameraArgs, EnvArgs, LightArgs, MeshSceneArgs, OutputArgs};
 
 /// Which renderer draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -41,6 +41,8 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub light: LightArgs,
     #[command(flatten)]
+    pub env: EnvArgs,
+    #[command(flatten)]
     pub output: OutputArgs,
     #[command(flatten)]
     pub cpu: CpuRenderFlags,
@@ -51,6 +53,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(model) = &args.model {
         if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
             anyhow::bail!("--mesh draws the fabric on a mesh, which only the GPU renderer does; the CPU renderer draws the tile on its plane");
+        }
+        if args.env.envmap.is_some() {
+            if args.backend == Backend::Gpu || args.scene.mesh.is_some() {
+                anyhow::bail!("--envmap is drawn by the CPU renderer only so far (the GLSL twin of env_shading is not written yet): use --backend cpu, without --mesh");
+            }
+            if args.backend == Backend::Auto {
+                println!("note: --envmap is drawn by the CPU renderer only so far; rendering with it");
+            }
+            println!("backend: CPU renderer of hybrid models");
+            return super::render_cpu::run(model, &args.camera, &args.light, &args.env, &args.output, &args.cpu);
         }
         let device = match args.backend {
             Backend::Cpu => None,
@@ -71,7 +83,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             }
             None => {
                 println!("backend: CPU renderer of hybrid models");
-                super::render_cpu::run(model, &args.camera, &args.light, &args.output, &args.cpu)
+                super::render_cpu::run(model, &args.camera, &args.light, &args.env, &args.output, &args.cpu)
             }
         };
     }

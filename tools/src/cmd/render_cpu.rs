@@ -6,11 +6,12 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use fabric_runtime::cpu::{CpuRenderOptions, EditMask, Edits, LevelChoice, ShadowMode, render_with_progress};
+use fabric_runtime::cpu::{CpuRenderOptions, EditMask, Edits, EnvLight, LevelChoice, ShadowMode, render_with_progress};
+use fabric_runtime::scene::{ExtractOptions, Light, PrefilteredEnv};
 use fabric_runtime::hybrid::format::read_file;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::args::{CameraArgs, LightArgs, OutputArgs};
+use crate::args::{CameraArgs, EnvArgs, LightArgs, OutputArgs};
 
 /// Flags of the CPU backend (the camera, light and output flags are the shared ones).
 #[derive(Args, Clone, Debug)]
@@ -109,14 +110,33 @@ impl CpuRenderFlags {
 }
 
 /// Renders `model_path` with the CPU renderer and writes the image.
-pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags) -> Result<()> {
+pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvArgs, output: &OutputArgs, flags: &CpuRenderFlags) -> Result<()> {
     output.validate()?;
     let model = read_file(model_path)?;
     // The default framing and --view-angles aim at the model's box: the tile's x–y box
     // from the top plane down through the depth range, i.e. the source volume's box.
     let camera = camera.camera(model.bounds())?;
-    let light = light.light()?;
-    let options = flags.options()?;
+    let mut options = flags.options()?;
+    let map = env.env_map()?;
+    // With a map, the delta light is there only when asked for (as `fabric reference`).
+    let lights: Vec<Light> = if map.is_none() || light.given() { vec![light.light()?] } else { Vec::new() };
+    if let Some(map) = map {
+        let t = std::time::Instant::now();
+        let prefiltered = PrefilteredEnv::with_lights(&map, ExtractOptions::default())?;
+        println!(
+            "environment {} ({}x{}): {} source(s) shaded as directional lights{}, the rest prefiltered into {} SG levels (σ {:.3}–{:.2} rad) in {:.2?}",
+            map.name().display(),
+            map.width(),
+            map.height(),
+            prefiltered.lights.len(),
+            prefiltered.lights.iter().map(|l| match l { Light::Directional { dir_to_light, irradiance } => format!(" [toward {:.3},{:.3},{:.3}, irradiance {:.3}]", dir_to_light.x, dir_to_light.y, dir_to_light.z, irradiance.dot(glam::Vec3::ONE) / 3.0), _ => String::new() }).collect::<String>(),
+            prefiltered.levels.len(),
+            prefiltered.sigma0,
+            prefiltered.sigma_max(),
+            t.elapsed()
+        );
+        options.env = Some(EnvLight { background: !env.no_background, ..EnvLight::new(prefiltered) });
+    }
     if options.shadows == ShadowMode::FromModel {
         println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
     } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {
@@ -125,7 +145,7 @@ pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, output: &O
     let bar = ProgressBar::new(camera.height as u64);
     bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} rows, {elapsed} (eta {eta})").unwrap_or_else(|_| ProgressStyle::default_bar()));
     let start = std::time::Instant::now();
-    let (image, stats) = render_with_progress(&model, &camera, &[light], &options, &|| bar.inc(1)).with_context(|| format!("cannot render {}", model_path.display()))?;
+    let (image, stats) = render_with_progress(&model, &camera, &lights, &options, &|| bar.inc(1)).with_context(|| format!("cannot render {}", model_path.display()))?;
     let elapsed = start.elapsed();
     bar.finish_and_clear();
     image.write(&output.out, output.exposure)?;
@@ -164,17 +184,17 @@ mod tests {
         let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
         let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
         let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
-        run(&model, &camera, &light, &output, &flags).unwrap();
+        run(&model, &camera, &light, &EnvArgs::default(), &output, &flags).unwrap();
         let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
         assert_eq!((image.width, image.height), (32, 24));
         assert!(image.mean() > 0.0);
-        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { level: LevelFlag::Fixed(9), ..flags.clone() }).unwrap_err();
+        let err = run(&model, &camera, &light, &EnvArgs::default(), &output, &CpuRenderFlags { level: LevelFlag::Fixed(9), ..flags.clone() }).unwrap_err();
         assert!(format!("{err:#}").contains("level 9 does not exist"), "{err:#}");
-        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { roughness_scale: -1.0, ..flags.clone() }).unwrap_err();
+        let err = run(&model, &camera, &light, &EnvArgs::default(), &output, &CpuRenderFlags { roughness_scale: -1.0, ..flags.clone() }).unwrap_err();
         assert!(format!("{err:#}").contains("roughness scale"), "{err:#}");
-        let err = run(&model, &camera, &light, &output, &CpuRenderFlags { edit_mask: Some(dir.join("no-mask.png")), ..flags.clone() }).unwrap_err();
+        let err = run(&model, &camera, &light, &EnvArgs::default(), &output, &CpuRenderFlags { edit_mask: Some(dir.join("no-mask.png")), ..flags.clone() }).unwrap_err();
         assert!(format!("{err:#}").contains("edit mask"), "{err:#}");
-        let err = run(&dir.join("missing.hyb"), &camera, &light, &output, &flags).unwrap_err();
+        let err = run(&dir.join("missing.hyb"), &camera, &light, &EnvArgs::default(), &output, &flags).unwrap_err();
         assert!(format!("{err:#}").contains("missing.hyb"), "{err:#}");
         assert_eq!(parse_level("auto"), Ok(LevelFlag::Auto));
         assert_eq!(parse_level("3"), Ok(LevelFlag::Fixed(3)));

@@ -1,0 +1,322 @@
+//! The prefiltered environment the model renderers light from (paper §7.2,
+//! "Extensions": SG lobes lit by prefiltered environment maps).
+//!
+//! Two representations of one [`EnvMap`], in its own (u, v) parameterization:
+//! - a chain of spherical-Gaussian blurs: level k holds
+//!   ```text
+//!   L̄_k(μ) = ∫ L(ω) e^{λ_k (μ·ω − 1)} dω / ∫ e^{λ_k (μ·ω − 1)} dω,   λ_k = 1/σ_k²,
+//!   σ_k = σ_0 · 2^k
+//!   ```
+//!   (the mean radiance under a normalized SG of angular width σ_k) at a resolution
+//!   whose texel is σ_k/2; σ_0 is two texel heights of the source map, and the chain
+//!   ends when a level is 4 texels high. [`PrefilteredEnv::blurred`] interpolates
+//!   bilinearly in a level and linearly in log σ between levels, so an SG lobe of any
+//!   width is one lookup: ∫ L(ω) A e^{λ(μ·ω−1)} dω ≈ A · 2π/λ · (1 − e^{−2λ}) · L̄_σ(μ).
+//! - the irradiance map E(n) = ∫ L(ω) max(n·ω, 0) dω (the cosine convolution of the
+//!   source map downsampled to at most 128 × 64, at 64 × 32 normals), for diffuse terms.
+//!
+//! Each level is computed from the source box-downsampled to its resolution (texels
+//! weighted by solid angle) by a windowed convolution (±3σ) normalized by the kernel's
+//! own discrete sum, so a constant map stays exactly constant at every level.
+
+use std::f32::consts::PI;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::env_lights::{ExtractOptions, extract_lights};
+use super::envmap::{EnvMap, EnvMapError, row_solid_angle};
+use super::light::Light;
+
+/// One equirectangular level: row 0 at the map's zenith.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvLevel {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec3>,
+}
+
+impl EnvLevel {
+    fn at(&self, x: usize, y: usize) -> Vec3 {
+        self.texels[y * self.width as usize + x]
+    }
+
+    /// Bilinear lookup at (u, v) ∈ [0, 1]²: wraps in u, clamps in v.
+    pub fn bilinear(&self, u: f32, v: f32) -> Vec3 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = u * w as f32 - 0.5;
+        let y = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let xi = (x0 as i64).rem_euclid(w as i64) as usize;
+        let x1 = (xi + 1) % w;
+        let yi = y0 as usize;
+        let y1 = (yi + 1).min(h - 1);
+        let top = self.at(xi, yi).lerp(self.at(x1, yi), fx);
+        let bottom = self.at(xi, y1).lerp(self.at(x1, y1), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// Unit direction (map frame) of texel (x, y)'s centre.
+    fn centre(&self, x: usize, y: usize) -> Vec3 {
+        local_direction((x as f32 + 0.5) / self.width as f32, (y as f32 + 0.5) / self.height as f32)
+    }
+}
+
+/// A direction in the map's own frame (Y up) from (u, v), as `EnvMap::direction` before
+/// its placement in the world.
+#[inline]
+pub fn local_direction(u: f32, v: f32) -> Vec3 {
+    let (st, ct) = (v * PI).sin_cos();
+    let (sp, cp) = (u * std::f32::consts::TAU).sin_cos();
+    Vec3::new(st * sp, ct, -st * cp)
+}
+
+/// The SG-blur chain and irradiance map of an environment map, and the sources taken
+/// out of it as directional lights (env_lights.rs), if any.
+#[derive(Clone, Debug)]
+pub struct PrefilteredEnv {
+    /// The whole map (sources included), for the background and the placement.
+    pub map: EnvMap,
+    /// Sources shaded as lights; the chain holds the map without them.
+    pub lights: Vec<Light>,
+    /// σ of level 0 (radians).
+    pub sigma0: f32,
+    pub levels: Vec<EnvLevel>,
+    pub irradiance: EnvLevel,
+}
+
+/// Resolution of the irradiance map.
+pub const IRRADIANCE_WIDTH: u32 = 64;
+
+impl PrefilteredEnv {
+    /// The map prefiltered whole (no lights taken out).
+    pub fn new(map: &EnvMap) -> PrefilteredEnv {
+        Self::build(map, map, Vec::new())
+    }
+
+    /// Compact bright sources become directional lights; the rest is prefiltered.
+    pub fn with_lights(map: &EnvMap, options: ExtractOptions) -> Result<PrefilteredEnv, EnvMapError> {
+        let (lights, rest) = extract_lights(map, options)?;
+        Ok(Self::build(map, &rest, lights))
+    }
+
+    fn build(whole: &EnvMap, map: &EnvMap, lights: Vec<Light>) -> PrefilteredEnv {
+        let source = EnvLevel { width: map.width(), height: map.height(), texels: (0..map.height()).flat_map(|y| (0..map.width()).map(move |x| (x, y))).map(|(x, y)| map.texel(x, y)).collect() };
+        // Level 0 at the source's resolution (or 512 × 256 at most: finer adds nothing
+        // for lobes wider than a few tenths of a degree).
+        let mut base = source.clone();
+        while base.height > 256 {
+            base = downsample(&base);
+        }
+        let sigma0 = 2.0 * PI / base.height as f32;
+        let mut levels = Vec::new();
+        let mut input = base;
+        let mut sigma = sigma0;
+        loop {
+            levels.push(sg_blur(&input, sigma));
+            if input.height <= 4 {
+                break;
+            }
+            input = downsample(&input);
+            sigma *= 2.0;
+        }
+        let mut small = source;
+        while small.width > 2 * IRRADIANCE_WIDTH && small.height > 1 {
+            small = downsample(&small);
+        }
+        let irradiance = cosine_convolution(&small, IRRADIANCE_WIDTH, IRRADIANCE_WIDTH / 2);
+        PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, irradiance }
+    }
+
+    /// Widest σ the chain holds.
+    pub fn sigma_max(&self) -> f32 {
+        self.sigma0 * (1u32 << (self.levels.len() - 1)) as f32
+    }
+
+    /// L̄_σ toward world direction `w`: the mean radiance under a normalized SG of
+    /// angular width σ (radians) around w. σ below σ_0 reads level 0; above the chain's
+    /// widest, its last level.
+    pub fn blurred(&self, w: Vec3, sigma: f32) -> Vec3 {
+        let (u, v) = self.map.uv(w);
+        let l = if sigma > self.sigma0 { (sigma / self.sigma0).log2() } else { 0.0 };
+        let l = l.min((self.levels.len() - 1) as f32);
+        let l0 = l.floor() as usize;
+        let f = l - l0 as f32;
+        let a = self.levels[l0].bilinear(u, v);
+        if f <= 0.0 || l0 + 1 >= self.levels.len() {
+            return a;
+        }
+        a.lerp(self.levels[l0 + 1].bilinear(u, v), f)
+    }
+
+    /// E(n) = ∫ L(ω) max(n·ω, 0) dω for a world normal n.
+    pub fn irradiance(&self, n: Vec3) -> Vec3 {
+        let (u, v) = self.map.uv(n);
+        self.irradiance.bilinear(u, v)
+    }
+}
+
+/// Integral of a unit-peak SG of sharpness λ over the sphere: 2π/λ · (1 − e^{−2λ}).
+#[inline]
+pub fn sg_integral(lambda: f32) -> f32 {
+    2.0 * PI / lambda * (1.0 - (-2.0 * lambda).exp())
+}
+
+/// Halves each side (height stops at 1), averaging 2×2 texels by solid angle.
+fn downsample(l: &EnvLevel) -> EnvLevel {
+    let (w, h) = (l.width as usize, l.height as usize);
+    let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+    let mut texels = vec![Vec3::ZERO; nw * nh];
+    for y in 0..nh {
+        for x in 0..nw {
+            let mut sum = Vec3::ZERO;
+            let mut wsum = 0.0f32;
+            for sy in (2 * y)..(2 * y + 2).min(h) {
+                let om = row_solid_angle(sy, h, w) as f32;
+                for sx in (2 * x)..(2 * x + 2).min(w) {
+                    sum += l.at(sx, sy) * om;
+                    wsum += om;
+                }
+            }
+            texels[y * nw + x] = if wsum > 0.0 { sum / wsum } else { Vec3::ZERO };
+        }
+    }
+    EnvLevel { width: nw as u32, height: nh as u32, texels }
+}
+
+/// The normalized SG blur of `l` with width σ, at `l`'s resolution.
+fn sg_blur(l: &EnvLevel, sigma: f32) -> EnvLevel {
+    let (w, h) = (l.width as usize, l.height as usize);
+    let lambda = 1.0 / (sigma * sigma);
+    let dirs: Vec<Vec3> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| l.centre(x, y)).collect();
+    let omegas: Vec<f32> = (0..h).map(|y| row_solid_angle(y, h, w) as f32).collect();
+    let dtheta = PI / h as f32;
+    let reach = 3.0 * sigma;
+    let rows: Vec<Vec<Vec3>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let theta = (y as f32 + 0.5) * dtheta;
+            let y_lo = ((theta - reach) / dtheta).floor().max(0.0) as usize;
+            let y_hi = (((theta + reach) / dtheta).ceil() as usize).min(h - 1);
+            (0..w)
+                .map(|x| {
+                    let mu = dirs[y * w + x];
+                    let mut sum = Vec3::ZERO;
+                    let mut wsum = 0.0f32;
+                    for sy in y_lo..=y_hi {
+                        // Columns within reach: the row's smallest sin θ decides the span.
+                        let st = {
+                            let (a, b) = ((sy as f32 * dtheta).sin(), ((sy + 1) as f32 * dtheta).sin());
+                            a.min(b).max(1e-6)
+                        };
+                        let span = (reach / st / (2.0 * PI / w as f32)).ceil() as i64 + 1;
+                        let cols: Box<dyn Iterator<Item = usize>> = if 2 * span + 1 >= w as i64 { Box::new(0..w) } else { Box::new((-span..=span).map(|d| (x as i64 + d).rem_euclid(w as i64) as usize)) };
+                        for sx in cols {
+                            let d = dirs[sy * w + sx];
+                            let k = (lambda * (mu.dot(d) - 1.0)).exp() * omegas[sy];
+                            sum += l.at(sx, sy) * k;
+                            wsum += k;
+                        }
+                    }
+                    if wsum > 0.0 { sum / wsum } else { l.at(x, y) }
+                })
+                .collect()
+        })
+        .collect();
+    EnvLevel { width: l.width, height: l.height, texels: rows.into_iter().flatten().collect() }
+}
+
+/// E(n) = ∫ L max(n·ω, 0) dω of the piecewise-constant map `l`, at `w` × `h` normals:
+/// each texel split into cells of equal solid angle (2 × 2, more for small maps) of equal solid angle, so the cosine is integrated
+/// over the texel rather than taken at its centre.
+fn cosine_convolution(l: &EnvLevel, w: u32, h: u32) -> EnvLevel {
+    let (lw, lh) = (l.width as usize, l.height as usize);
+    // At least 256 cells around the equator whatever the map's size.
+    let sub = (256 / lw).clamp(2, 32);
+    let mut src: Vec<(Vec3, Vec3)> = Vec::with_capacity(lw * lh * sub * sub);
+    for y in 0..lh {
+        let (c0, c1) = ((PI * y as f32 / lh as f32).cos(), (PI * (y + 1) as f32 / lh as f32).cos());
+        let cell = row_solid_angle(y, lh, lw) as f32 / (sub * sub) as f32;
+        for x in 0..lw {
+            let radiance = l.at(x, y) * cell;
+            if radiance.max_element() <= 0.0 {
+                continue;
+            }
+            for j in 0..sub {
+                let v = (c0 + (j as f32 + 0.5) / sub as f32 * (c1 - c0)).clamp(-1.0, 1.0).acos() / PI;
+                for i in 0..sub {
+                    let u = (x as f32 + (i as f32 + 0.5) / sub as f32) / lw as f32;
+                    src.push((local_direction(u, v), radiance));
+                }
+            }
+        }
+    }
+    let out = EnvLevel { width: w, height: h, texels: Vec::new() };
+    let texels = (0..(w * h) as usize)
+        .into_par_iter()
+        .map(|i| {
+            let n = out.centre(i % w as usize, i / w as usize);
+            src.iter().map(|(d, lw)| *lw * n.dot(*d).max(0.0)).sum()
+        })
+        .collect();
+    EnvLevel { texels, ..out }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::Image;
+    use crate::scene::{EnvMapOptions, Sky};
+
+    #[test]
+    fn a_constant_map_stays_constant_and_integrates_exactly() {
+        let env = PrefilteredEnv::new(&EnvMap::constant(Vec3::splat(0.7)));
+        for (k, l) in env.levels.iter().enumerate() {
+            assert!(l.texels.iter().all(|t| (*t - Vec3::splat(0.7)).abs().max_element() < 1e-5), "level {k}");
+        }
+        for n in [Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+            // ∫ 0.7 max(n·ω, 0) dω = 0.7 π, within the discretization of the cosine.
+            let e = env.irradiance(n);
+            assert!((e - Vec3::splat(0.7 * PI)).abs().max_element() < 0.01 * 0.7 * PI, "{e}");
+            assert!((env.blurred(n, 0.3) - Vec3::splat(0.7)).abs().max_element() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn blurs_follow_the_sg_convolution() {
+        // A small bright disk (the sky's sun alone): L̄_σ(μ) at angle α from the sun ≈
+        // E_sun · e^{λ(cos α − 1)} / (2π/λ (1 − e^{−2λ})) for σ well above the disk.
+        let sky = Sky { zenith: Vec3::ZERO, horizon: Vec3::ZERO, ground: Vec3::ZERO, sun_radius_deg: 1.0, ..Sky::default() };
+        let map = sky.env_map(EnvMapOptions { scale: 1.0, rotate_deg: 40.0 }).unwrap();
+        let env = PrefilteredEnv::new(&map);
+        // The map turned 40° about +Z carries its sun with it.
+        let (s40, c40) = 40f32.to_radians().sin_cos();
+        let sun = Vec3::new(c40 * sky.sun_dir.x - s40 * sky.sun_dir.y, s40 * sky.sun_dir.x + c40 * sky.sun_dir.y, sky.sun_dir.z).normalize();
+        let side = sun.cross(Vec3::Z).normalize();
+        for sigma in [0.1f32, 0.2, 0.4] {
+            let lambda = 1.0 / (sigma * sigma);
+            for alpha in [0.0f32, 0.5 * sigma, sigma] {
+                let mu = (sun * alpha.cos() + side * alpha.sin()).normalize();
+                let expect = sky.sun_irradiance.x * (lambda * (alpha.cos() - 1.0)).exp() / sg_integral(lambda);
+                let got = env.blurred(mu, sigma).x;
+                assert!((got - expect).abs() < 0.08 * expect, "σ {sigma} α {alpha}: {got} vs {expect}");
+            }
+        }
+        // The irradiance of a sun alone is E_sun · max(n·ω_sun, 0).
+        for n in [sun, Vec3::Z, Vec3::new(1.0, 0.0, 0.2).normalize()] {
+            let expect = sky.sun_irradiance.x * n.dot(sun).max(0.0);
+            assert!((env.irradiance(n).x - expect).abs() < 0.03 * sky.sun_irradiance.x, "{} vs {expect}", env.irradiance(n).x);
+        }
+    }
+
+    #[test]
+    fn chain_shape() {
+        let img = Image::from_fn(1024, 512, |x, y| Vec3::splat(((x ^ y) & 7) as f32));
+        let env = PrefilteredEnv::new(&EnvMap::from_image(&img, EnvMapOptions::default(), std::path::Path::new("t")).unwrap());
+        assert_eq!((env.levels[0].width, env.levels[0].height), (512, 256));
+        assert_eq!(env.levels.last().unwrap().height, 4);
+        assert!((env.sigma0 - 2.0 * PI / 256.0).abs() < 1e-6);
+        assert!(env.levels.iter().all(|l| l.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0)));
+    }
+}
