@@ -349,7 +349,7 @@ AGREE_VIEWS = [
     {"name": "persp-directional", "origin": (-0.6, 0.3, 0.8), "target": (0.5, 0.5, 0.05), "up": (0, 0, 1), "fov": 50.0, "light_angles": (60.0, 90.0)},
     {"name": "ortho-point", "view_angles": (30.0, -90.0), "point_light": (0.2, 0.5, 0.6), "intensity": 0.5},
     {"name": "ortho-oblique-envmap", "view_angles": (50.0, 30.0), "envmap": "ENV", "envmap_rotate": 30.0},
-    {"name": "ortho-top-envmap-single", "view_angles": (0.0, 0.0), "envmap": "ENV", "envmap_rotate": -75.0, "max_depth": 2},
+    {"name": "ortho-oblique-envmap-single", "view_angles": (40.0, 120.0), "envmap": "ENV", "envmap_rotate": -75.0, "max_depth": 2},
     {"name": "persp-envmap", "origin": (-0.6, 0.3, 0.8), "target": (0.5, 0.5, 0.05), "up": (0, 0, 1), "fov": 50.0, "envmap": "ENV", "envmap_scale": 2.0},
 ]
 

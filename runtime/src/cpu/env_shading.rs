@@ -220,6 +220,23 @@ mod tests {
     }
 
     #[test]
+    fn extreme_lobes_stay_finite() {
+        let env = PrefilteredEnv::new(&Sky::default().env_map(EnvMapOptions::default()).unwrap());
+        let frames = [(Vec3::Z, Vec3::X), (Vec3::ZERO, Vec3::ZERO), (Vec3::X, Vec3::X), (Vec3::new(0.0, 0.0, -1.0), Vec3::Y)];
+        for (beta, gamma) in [(BETA_MIN, 0.0), (BETA_MAX, 0.0), (BETA_MIN, crate::brdf::GAMMA_MIN), (1.0, crate::brdf::GAMMA_MAX), (-5.0, -1.0), (f32::NAN, f32::NAN)] {
+            for (n, t) in frames {
+                for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-4).normalize(), direction_from_angles(89.9, 10.0)] {
+                    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+                        let b = texel(Vec3::splat(K_MAX), &[ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }], n, t);
+                        let r = texel_env_response(&b, wo, reading, true, &env);
+                        assert!(r.is_finite() && r.min_element() >= 0.0, "β {beta} γ {gamma} n {n} ω_o {wo}: {r}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn under_the_sky_the_mixture_tracks_the_integral() {
         // Random texels (1–3 lobes, tilted frames, both readings) under the built-in sky,
         // its sun taken out as a light: SG mixture + light against brute force over the

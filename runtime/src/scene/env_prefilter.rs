@@ -25,7 +25,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::env_lights::{ExtractOptions, extract_lights};
-use super::envmap::{EnvMap, EnvMapError, row_solid_angle};
+use super::envmap::{EnvMap, EnvMapError, local_direction, row_solid_angle};
 use super::light::Light;
 
 /// One equirectangular level: row 0 at the map's zenith.
@@ -61,15 +61,6 @@ impl EnvLevel {
     fn centre(&self, x: usize, y: usize) -> Vec3 {
         local_direction((x as f32 + 0.5) / self.width as f32, (y as f32 + 0.5) / self.height as f32)
     }
-}
-
-/// A direction in the map's own frame (Y up) from (u, v), as `EnvMap::direction` before
-/// its placement in the world.
-#[inline]
-pub fn local_direction(u: f32, v: f32) -> Vec3 {
-    let (st, ct) = (v * PI).sin_cos();
-    let (sp, cp) = (u * std::f32::consts::TAU).sin_cos();
-    Vec3::new(st * sp, ct, -st * cp)
 }
 
 /// The SG-blur chain and irradiance map of an environment map, and the sources taken

@@ -216,10 +216,7 @@ impl EnvMap {
 
     /// The world direction at texture coordinates (u, v).
     pub fn direction(&self, u: f32, v: f32) -> Vec3 {
-        let (theta, phi) = (v * PI, u * TAU);
-        let (st, ct) = theta.sin_cos();
-        let (sp, cp) = phi.sin_cos();
-        self.to_world(Vec3::new(st * sp, ct, -st * cp))
+        self.to_world(local_direction(u, v))
     }
 
     fn texel_index(&self, u: f32, v: f32) -> (usize, usize) {
@@ -286,6 +283,15 @@ impl EnvMap {
 }
 
 const ONE_MINUS: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// The direction at (u, v) in the map's own frame (Y up): θ = vπ from +Y, φ = 2πu
+/// from −Z toward +X, Mitsuba's `envmap` parameterization.
+#[inline]
+pub fn local_direction(u: f32, v: f32) -> Vec3 {
+    let (st, ct) = (v * PI).sin_cos();
+    let (sp, cp) = (u * TAU).sin_cos();
+    Vec3::new(st * sp, ct, -st * cp)
+}
 
 /// Solid angle of one texel of row `y` in a `w` × `h` map.
 pub fn row_solid_angle(y: usize, h: usize, w: usize) -> f64 {
