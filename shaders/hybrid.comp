@@ -8,10 +8,13 @@
 //
 // Bindings (set 0): 0-6 the model (common/model.glsl), 7 the frame's parameters and
 // 8 the edit mask (common/render_params.glsl), 9 the image (vec4 per pixel, x fastest,
-// rgb radiance), 10 the statistics (uint counters, STAT_*). One invocation per pixel, 8x8 per group.
+// rgb radiance), 10 the statistics (uint counters, STAT_*), 11 the prefiltered
+// environment (common/env_shading.glsl). One invocation per pixel, 8x8 per group.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
+// This program shades environment light (specialization constant HAS_ENV, binding 11).
+#define HYBRID_ENV
 #include "common/trace.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -319,3 +319,47 @@ fn coarse_relief_takes_fewer_steps_far_away_at_a_small_error_in_both_twins() {
     // Near (level 0) it is the exact march.
     assert_eq!(render(&m, &near, &lights, &coarse).unwrap(), render(&m, &near, &lights, &exact).unwrap());
 }
+
+#[test]
+fn environment_light_matches_the_cpu_twin() {
+    use fabric_runtime::cpu::{EnvLight, Edits};
+    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, PrefilteredEnv, Sky};
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg: 35.0 }).unwrap();
+    let env = EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap());
+    assert_eq!(env.prefiltered.lights.len(), 1, "the sun is shaded as a light");
+    // The sample model has flyaways and a coarse level: every kind of hit reads the map.
+    let m = examples::sample_model();
+    let g = pass.upload(&m, true).unwrap();
+    let near = Camera::orbit_orthographic(40.0, 30.0, Vec3::new(0.0, 0.0, 0.0), 3.0, 0.6, 64, 48);
+    let far = Camera::orbit_orthographic(55.0, -120.0, Vec3::new(0.0, 0.0, 0.0), 3.0, 12.0, 48, 48);
+    let base = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, env: Some(env.clone()), ..Default::default() };
+    let cases = [
+        ("near", near, base.clone()),
+        ("far, coarse levels", far, base.clone()),
+        ("edited", near, CpuRenderOptions { edits: Edits { tint: Vec3::new(0.6, 0.9, 1.2), roughness_scale: 1.7, tangent_rotation: 0.5, mask: None }, ..base.clone() }),
+        // A clamped tile seen from afar: rays that miss see the map, or black.
+        ("clamped, background", far, CpuRenderOptions { periodic: false, ..base.clone() }),
+        ("clamped, no background", far, CpuRenderOptions { periodic: false, env: Some(EnvLight { background: false, ..env.clone() }), ..base.clone() }),
+    ];
+    for (name, cam, opts) in cases {
+        let case = Case { name, camera: cam, options: opts.clone() };
+        let (rmse, _, d, gs, cs) = compare(&pass, &m, &[], &case);
+        assert_eq!(gs.level_pixels, cs.level_pixels, "{name}");
+        assert!(rmse < 1e-4 && d < 0.005, "{name}: relative RMSE {rmse}, {d} of pixels differ");
+    }
+    assert!(pass.render(&g, &near, &[], &base, None).unwrap().variant.env);
+    let clamped = pass.upload(&m, false).unwrap();
+    let with_bg = pass.render(&clamped, &far, &[], &CpuRenderOptions { periodic: false, ..base.clone() }, None).unwrap();
+    let without = pass.render(&clamped, &far, &[], &CpuRenderOptions { periodic: false, env: Some(EnvLight { background: false, ..env.clone() }), ..base.clone() }, None).unwrap();
+    assert!(with_bg.stats.tile_pixels < with_bg.stats.pixels && with_bg.image.mean() > without.image.mean(), "the far clamped view must show the background");
+    // The map lights what a point light alone does not: without it the image changes.
+    let lit = pass.render(&g, &near, &[], &base, None).unwrap().image;
+    let unlit = pass.render(&g, &near, &[Light::directional(Vec3::Z, Vec3::ZERO)], &CpuRenderOptions { env: None, ..base.clone() }, None).unwrap().image;
+    assert!(lit.mean() > 10.0 * unlit.mean().max(1e-9));
+    // On a mesh it is refused rather than drawn without the map.
+    let mesh = pass.upload_mesh(&fabric_runtime::scene::Mesh::plane(2.0, 2.0)).unwrap();
+    assert!(matches!(pass.prepare_mesh(&g, &mesh, glam::Vec2::ONE, &near, &[], &base, None), Err(GpuRenderError::EnvUnsupported)));
+    assert_no_validation_errors(&device);
+}

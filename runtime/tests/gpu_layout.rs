@@ -85,12 +85,12 @@ fn shader_structs_have_the_rust_layout() {
     check(&r, "GpuModelHeader", members!(GpuModelHeader: origin, size, texel, n, top_z, height_scale, level_count, quad_count, leaf_offset, flags, levels, quad));
     check(&r, "GpuCamera", members!(GpuCamera: origin, forward, right, up, half_extents, size));
     check(&r, "GpuLight", members!(GpuLight: vec, power));
-    check(&r, "GpuRenderParams", members!(GpuRenderParams: camera, background, light_count, max_steps, max_flyaway_columns, supersampling, level_mode, fixed_level, level_bias, coarse_relief, edit_tint, edit_roughness, edit_rotation, mask_dims, lights));
+    check(&r, "GpuRenderParams", members!(GpuRenderParams: camera, background, light_count, max_steps, max_flyaway_columns, supersampling, level_mode, fixed_level, level_bias, coarse_relief, edit_tint, edit_roughness, edit_rotation, mask_dims, lights, env_info, env_frame, env_levels));
     // The last member's end is the struct's size: a GLSL struct shorter than Rust's
     // would shift every array element after the first.
     let end = |name: &str| r.structs[name].last().map(|(_, o)| *o).unwrap();
     assert_eq!(end("GpuLevel") + 4, size_of::<GpuLevel>() as u32);
     assert_eq!(end("GpuQuadLevel") + 4, size_of::<GpuQuadLevel>() as u32);
     assert_eq!(end("GpuModelHeader") as usize + 18 * size_of::<GpuQuadLevel>(), size_of::<GpuModelHeader>());
-    assert_eq!(end("GpuRenderParams") as usize + 8 * size_of::<GpuLight>(), size_of::<GpuRenderParams>());
+    assert_eq!(end("GpuRenderParams") as usize + 9 * 16, size_of::<GpuRenderParams>());
 }

@@ -3,6 +3,7 @@
 //
 // Twin: runtime/src/hybrid/gpu_layout.rs (GpuCamera, GpuLight, GpuRenderParams;
 // bindings 7 and 8) and runtime/src/gpu/hybrid_pass.rs (the specialization constants).
+// The environment's texels are binding 11 (env_shading.glsl).
 #ifndef RENDER_PARAMS_GLSL
 #define RENDER_PARAMS_GLSL
 
@@ -44,6 +45,9 @@ struct GpuRenderParams {
     float edit_rotation;  // radians
     uvec2 mask_dims;      // 0 x 0: no mask
     GpuLight lights[GPU_MAX_LIGHTS];
+    uvec4 env_info;       // x: SG levels (0: no environment), y: 1 = rays that miss see it
+    vec4 env_frame;       // cos, sin of the map's rotation; sigma_0 of level 0
+    uvec4 env_levels[9];  // offset into binding 11, width, height; [8]: the irradiance map
 };
 
 layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParams params; };
@@ -63,5 +67,7 @@ layout(constant_id = 2) const uint LIGHT_COUNT = 1u;     // lights[0 .. LIGHT_CO
 layout(constant_id = 3) const bool RELIEF = true;
 // The most lobes any BRDF of the model has (1..8): the lobe loop's compiled bound.
 layout(constant_id = 4) const uint LOBE_BOUND = 8u;
+// Environment light (env_shading.glsl; programs that define HYBRID_ENV).
+layout(constant_id = 5) const bool HAS_ENV = false;
 
 #endif // RENDER_PARAMS_GLSL

@@ -2,7 +2,8 @@
 // under each light, with optional height-field shadowing (DESIGN.md §7).
 //
 // Twin: runtime/src/cpu/shading.rs (texel_response, volume_factor, in_fiber_frame,
-// shade, shade_blend) and Scene::visibility (runtime/src/cpu/render.rs). Two
+// shade, shade_blend) and Scene::visibility (runtime/src/cpu/render.rs); with HYBRID_ENV
+// defined, both add the environment (env_shading.glsl; Scene::env_response). Two
 // differences of form, not of value: texels are evaluated from their records
 // (TexelRef, model.glsl) rather than decoded first, and shade_blend gathers its texels
 // itself (level 0's nearest texel, or the anisotropic taps of bilinear lookups that the
@@ -85,6 +86,10 @@ float volume_factor(vec3 wi, vec3 wo) {
     return 2.0 / max(max(wi.z, 0.0) + max(wo.z, 0.0), VOLUME_MU_MIN);
 }
 
+#ifdef HYBRID_ENV
+#include "common/env_shading.glsl"
+#endif
+
 // A flyaway's BRDF (entry `param` of its level's table) in the fiber frame of axis
 // `fiber` seen from wo.
 TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
@@ -134,6 +139,11 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
         }
         radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
     }
+#ifdef HYBRID_ENV
+    if (HAS_ENV) {
+        radiance += texel_env_response(b, e, false, wo, reading, volumetric);
+    }
+#endif
     return radiance;
 }
 
@@ -180,6 +190,15 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         }
         radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
     }
+#ifdef HYBRID_ENV
+    if (HAS_ENV) {
+        for (uint c = 0u; c < count; ++c) {
+            TexelRef r;
+            float w = surface_texel(level, p, axis, taps, c, r);
+            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric);
+        }
+    }
+#endif
     return radiance;
 }
 

@@ -62,8 +62,18 @@ vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, inout uin
 // One ray, shaded with the levels choose_levels gives where it meets the surface (the
 // top plane if it misses). The two levels of a blend are loops, not two
 // calls: one inlined copy of each march and of the shading.
+// Radiance where a ray along d misses the tile (twin: Scene::trace_mixed's background).
+vec3 background(vec3 d) {
+#ifdef HYBRID_ENV
+    if (HAS_ENV && params.env_info.y != 0u) {
+        return env_blurred(d, 0.0);
+    }
+#endif
+    return params.background.rgb;
+}
+
 PixelTrace trace_mixed(vec3 o, vec3 d) {
-    PixelTrace out_ = PixelTrace(params.background.rgb, -1, false, 0.0, false, 0u, 0u);
+    PixelTrace out_ = PixelTrace(background(d), -1, false, 0.0, false, 0u, 0u);
     float t_top;
     if (!enter_top(o, d, t_top)) {
         return out_;
@@ -94,7 +104,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     }
     out_.flyaway_opacity = 1.0 - fly_transmittance;
     // What they let through sees the surface, blended over its levels.
-    vec3 behind = params.background.rgb;
+    vec3 behind = out_.radiance;
     if (out_.surface) {
         behind = vec3(0.0);
         if (fly_transmittance > 0.0) {

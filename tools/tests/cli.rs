@@ -325,17 +325,22 @@ fn hybrid_models_render_under_an_environment_map() {
         let o = fabric().arg("render").arg(&model).args(["--view-angles", "30,-90", "--size", "48x32", "--envmap", "sky"]).args(extra).arg("--out").arg(&out).output().unwrap();
         (o.status.success(), String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr), out)
     };
-    // Auto draws it with the CPU renderer and says so; the sun becomes a light.
-    let (ok, text, out) = run(&[], "env-auto.exr");
-    assert!(ok && text.contains("CPU renderer only so far") && text.contains("1 source(s) shaded as directional lights"), "{text}");
+    // Both backends draw it alike; the sun becomes a light.
+    let (ok, text, out) = run(&["--backend", "auto"], "env-auto.exr");
+    assert!(ok && text.contains("GPU renderer") && text.contains("environment map") && text.contains("1 source(s) shaded as directional lights"), "{text}");
+    let gpu = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
+    let (ok, text, out) = run(&["--backend", "cpu"], "env-cpu.exr");
+    assert!(ok && text.contains("CPU renderer"), "{text}");
     let lit = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
     assert!(lit.mean() > 1e-3 && lit.first_non_finite().is_none());
-    // Brighter map, brighter image (linear); a delta light adds on top.
+    let rmse = fabric_runtime::metrics::relative_rmse(&gpu, &lit).unwrap();
+    assert!(rmse < 1e-3, "GPU vs CPU under the sky: relative RMSE {rmse}");
+    // Brighter map, brighter image (linear).
     let (ok, text, out) = run(&["--backend", "cpu", "--envmap-scale", "2"], "env-x2.exr");
     assert!(ok, "{text}");
     let twice = fabric_runtime::image::Image::read(&out, 1.0).unwrap();
     assert!((twice.mean() / lit.mean() - 2.0).abs() < 1e-3, "{} vs {}", twice.mean(), lit.mean());
-    // The GPU backend says what is missing rather than drawing something else.
-    let (ok, text, _) = run(&["--backend", "gpu"], "env-gpu.exr");
-    assert!(!ok && text.contains("CPU renderer only") && !text.contains("panicked"), "{text}");
+    // On a mesh it says what is missing rather than drawing something else.
+    let (ok, text, _) = run(&["--mesh", "sphere"], "env-mesh.exr");
+    assert!(!ok && text.contains("--mesh it is not drawn yet") && !text.contains("panicked"), "{text}");
 }

@@ -34,7 +34,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, K_MAX, cloth_angles, cloth_gaussian, cloth_lobe, cloth_phi_falloff};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, K_MAX, cloth_angles, cloth_fresnel, cloth_gaussian, cloth_phi_falloff, cloth_shadowing};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -49,15 +49,6 @@ pub fn env_erf(x: f32) -> f32 {
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
     let y = 1.0 - (((((1.061_405_4 * t - 1.453_152_1) * t) + 1.421_413_7) * t - 0.284_496_74) * t + 0.254_829_6) * t * (-x * x).exp();
     s * y
-}
-
-/// The direction at latitude θ (from the normal plane, toward t) and longitude φ (from
-/// n toward b) of frame `f`.
-#[inline]
-pub fn env_direction(f: &ClothFrame, theta: f32, phi: f32) -> Vec3 {
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = phi.sin_cos();
-    f.t * st + (f.n * cp + f.b * sp) * ct
 }
 
 /// One SG of a lobe's mixture: axis, weight (RGB) and angular width.
@@ -96,10 +87,17 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
     let d_phi = (phi_hi - phi_lo) / k_phi as f32;
     for c in 0..k_phi {
         let phi = phi_lo + (c as f32 + 0.5) * d_phi;
-        let beta_eff = match reading {
-            BrdfReading::Bounded => beta,
-            BrdfReading::Width => (beta * cloth_phi_falloff(phi + ao.phi, lobe.gamma)).max(BETA_MIN),
+        let (sp, cp) = phi.sin_cos();
+        let (beta_eff, falloff) = match reading {
+            BrdfReading::Bounded => (beta, cloth_phi_falloff(phi + ao.phi, lobe.gamma)),
+            BrdfReading::Width => ((beta * cloth_phi_falloff(phi + ao.phi, lobe.gamma)).max(BETA_MIN), 1.0),
         };
+        // What of R depends on φ alone: the shadowing (cos φ_i = cos φ on the band) and
+        // the bounded reading's falloff.
+        let r_phi = k * (cloth_shadowing(cp, a) * falloff);
+        if r_phi.max_element() <= 0.0 {
+            continue;
+        }
         let lo = (theta_c - 3.0 * beta_eff).max(-FRAC_PI_2);
         let hi = (theta_c + 3.0 * beta_eff).min(FRAC_PI_2);
         if !(hi > lo) {
@@ -117,22 +115,22 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
             // Centroid of N(θ_c, β'²) on [t0, t1]: θ_c + β'² (g(t0) − g(t1)) / mass.
             let g = |t: f32| cloth_gaussian(t - theta_c, beta_eff);
             let theta = (theta_c + beta_eff * beta_eff * (g(t0) - g(t1)) / mass).clamp(t0, t1);
-            let wi = env_direction(f, theta, phi);
-            let cos_n = f.n.dot(wi);
+            let (st, ct) = theta.sin_cos();
+            let wi = f.t * st + (f.n * cp + f.b * sp) * ct;
+            // n·ω_i = cos θ cos φ; ω_i's angles are the node's own, so R needs no atan2:
+            // R = k F(η, cos θ_d) max(cos φ_i, 0)^a P · n·ω_i · V_f (cloth_lobe / G).
+            let cos_n = ct * cp;
             if !(cos_n > 0.0) || !(wi.z > 0.0) {
                 continue;
             }
-            let gauss = cloth_gaussian(theta + ao.theta, beta_eff);
-            if !(gauss > 0.0) {
-                continue;
-            }
-            // R = the lobe without its Gaussian in θ.
-            let r = cloth_lobe(lobe, eta, a, f, wi, wo, reading) * (cos_n / gauss) * if volumetric { volume_factor(wi, wo) } else { 1.0 };
-            let weight = r * (mass * d_phi * theta.cos());
+            let cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
+            let fresnel = cloth_fresnel(eta, (0.5 * (1.0 + cos_diff)).max(0.0).sqrt());
+            let r = r_phi * (fresnel * cos_n * if volumetric { volume_factor(wi, wo) } else { 1.0 });
+            let weight = r * (mass * d_phi * ct);
             if weight.max_element() <= 0.0 {
                 continue;
             }
-            let sigma = (beta_eff.min(0.4 * d_theta)).max(0.4 * d_phi * theta.cos());
+            let sigma = (beta_eff.min(0.4 * d_theta)).max(0.4 * d_phi * ct);
             emit(EnvNode { axis: wi, weight, sigma });
         }
     }

@@ -284,7 +284,8 @@ impl<'a> Scene<'a> {
     /// once, the flyaways and the surface are shaded per level and blended.
     pub fn trace_mixed(&self, ray: &Ray, choose: &dyn Fn(f32) -> LevelMix) -> PixelTrace {
         let background = match &self.options.env {
-            Some(e) if e.background => e.prefiltered.map.eval(ray.d),
+            // Level 0 of the chain, bilinear: what the GPU reads too (no copy of the full map).
+            Some(e) if e.background => e.prefiltered.blurred(ray.d, 0.0),
             _ => self.options.background,
         };
         let mut out = PixelTrace { radiance: background, ..Default::default() };

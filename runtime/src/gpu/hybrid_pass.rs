@@ -18,7 +18,7 @@ use glam::{Vec2, Vec3};
 
 use crate::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, validate_view};
 use crate::hybrid::HybridModel;
-use crate::hybrid::gpu_layout::{GPU_MAX_LIGHTS, GpuCamera, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
+use crate::hybrid::gpu_layout::{GPU_ENV_SLOTS, GPU_MAX_LIGHTS, GpuCamera, GpuEnv, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
 use crate::image::Image;
 use super::mesh_pass::depth_range;
 use super::target::{COLOR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
@@ -37,7 +37,7 @@ pub enum GpuRenderError {
     TooManyLights { count: usize },
     #[error("the model was uploaded for a {} tile but the render asks for a {} one", if *.uploaded { "periodic" } else { "clamped" }, if *.uploaded { "clamped" } else { "periodic" })]
     Periodic { uploaded: bool },
-    #[error("environment lighting is drawn by the CPU renderer only so far (use --backend cpu)")]
+    #[error("environment lighting is drawn on a tile by the compute pass, not on a mesh yet (hybrid_mesh.frag does not map the map into tile space), and needs at most 8 prefiltered levels")]
     EnvUnsupported,
     #[error("{count} pixel(s) came out NaN or infinite, the first at ({x}, {y}): a bug in the renderer, please report it")]
     NonFinite { count: u32, x: u32, y: u32 },
@@ -58,15 +58,17 @@ pub struct Variant {
     pub relief: bool,
     /// The lobe loop's bound: the most lobes of any BRDF in the model (1..=8).
     pub lobes: u32,
+    /// Environment light (compute pass only).
+    pub env: bool,
 }
 
 impl Variant {
     fn specialization(&self) -> Specialization {
-        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8))
+        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8)).bool(5, self.env)
     }
 
     fn name(&self, pass: &str) -> String {
-        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes)", self.flyaways, self.shadows, self.lights, self.relief, self.lobes)
+        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes, env {})", self.flyaways, self.shadows, self.lights, self.relief, self.lobes, self.env)
     }
 }
 
@@ -144,7 +146,7 @@ const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
-        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 11], vk::ShaderStageFlags::COMPUTE)?;
+        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 12], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
         let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 9], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
@@ -184,7 +186,7 @@ impl HybridPass {
     /// The variant a render of `model` with `options` under `lights` uses: the flyaway
     /// march only where the model has flyaways and the options want them.
     pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool, options: &CpuRenderOptions) -> Variant {
-        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true, lobes: model.max_lobes }
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true, lobes: model.max_lobes, env: options.env.is_some() }
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
@@ -257,7 +259,7 @@ impl HybridPass {
         }
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
-        let (params, mask) = self.params_buffers(camera, lights, options)?;
+        let (params, mask) = self.params_buffers(camera, lights, options, None)?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
         resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask)]);
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
@@ -307,7 +309,7 @@ impl HybridPass {
     }
 
     /// The frame's parameters and its edit mask, in host-visible buffers.
-    fn params_buffers(&self, camera: &Camera, lights: &[Light], options: &CpuRenderOptions) -> Result<(Buffer, Buffer), GpuRenderError> {
+    fn params_buffers(&self, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, env: Option<&GpuEnv>) -> Result<(Buffer, Buffer), GpuRenderError> {
         let (level_mode, fixed_level, level_bias) = match options.level {
             LevelChoice::Auto { bias } => (LEVEL_AUTO, 0, bias),
             LevelChoice::Nearest { bias } => (LEVEL_NEAREST, 0, bias),
@@ -334,6 +336,9 @@ impl HybridPass {
             edit_rotation: e.tangent_rotation,
             mask_dims: e.mask.as_ref().map_or([0, 0], |m| [m.width, m.height]),
             lights: gpu_lights,
+            env_info: env.map_or([0; 4], |e| e.info),
+            env_frame: env.map_or([0.0; 4], |e| e.frame),
+            env_levels: env.map_or([[0; 4]; GPU_ENV_SLOTS], |e| e.levels),
         };
         let buf = Buffer::new(&self.device, "hybrid params", size_of::<GpuRenderParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         buf.write_mapped(bytemuck::bytes_of(&params))?;
@@ -347,27 +352,32 @@ impl HybridPass {
     /// renderer's; `options.periodic` must match the upload). `variant` overrides the
     /// specialization (tests and benchmarks of the skips); None: what the scene needs.
     pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+        // The environment's sources are lights like the others (as the CPU's render).
+        let lights = &options.lights_with_env(lights)[..];
         let shadows = validate_view(&model.model, camera, lights, options)?;
-        if options.env.is_some() {
-            return Err(GpuRenderError::EnvUnsupported);
-        }
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
         if options.periodic != model.periodic {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
+        let env = match &options.env {
+            Some(e) => Some(GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?),
+            None => None,
+        };
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
-        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options)?;
+        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref())?;
+        let env_texels: &[[f32; 4]] = env.as_ref().map_or(&[[0.0; 4]][..], |e| &e.texels);
+        let env_buf = Buffer::with_data(dev, "hybrid environment", bytemuck::cast_slice(env_texels), vk::BufferUsageFlags::STORAGE_BUFFER)?;
         let (w, h) = (camera.width, camera.height);
         // Device-local: on a discrete GPU the shader must not write across the bus.
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;
         let stats = Buffer::new(dev, "hybrid stats", (STAT_WORDS * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         stats.write_mapped(&[0u8; STAT_WORDS * 4])?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats)]);
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats), Resource::Buffer(&env_buf)]);
         let set = DescriptorSet::new(dev, &self.set_layout, &resources)?;
         let timestamps = Timestamps::new(dev, 2)?;
         dev.record_and_run("hybrid pass", |rec| {

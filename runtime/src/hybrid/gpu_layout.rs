@@ -298,7 +298,8 @@ impl GpuLight {
 }
 
 /// One frame's camera, lights, options and edits (binding 7; the edit mask is binding 8,
-/// one f32 per mask pixel as `cpu::EditMask` stores them). 416 bytes.
+/// one f32 per mask pixel as `cpu::EditMask` stores them; the environment's texels are
+/// binding 11). 592 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuRenderParams {
@@ -321,7 +322,48 @@ pub struct GpuRenderParams {
     pub edit_rotation: f32,
     pub mask_dims: [u32; 2],
     pub lights: [GpuLight; GPU_MAX_LIGHTS],
+    /// Environment light (env_shading.glsl; [`GpuEnv`]): x the SG levels (0: none),
+    /// y 1 where rays that miss see the map.
+    pub env_info: [u32; 4],
+    /// cos and sin of the map's rotation, σ_0 of level 0.
+    pub env_frame: [f32; 4],
+    /// Per level (offset in texels of binding 11, width, height, 0); [8] the irradiance map.
+    pub env_levels: [[u32; 4]; GPU_ENV_SLOTS],
 }
 
+/// Slots of `env_levels`: 8 SG levels, then the irradiance map.
+pub const GPU_ENV_SLOTS: usize = 9;
+
 const _: () = assert!(size_of::<GpuCamera>() == 80);
-const _: () = assert!(size_of::<GpuRenderParams>() == 416);
+const _: () = assert!(size_of::<GpuRenderParams>() == 592);
+
+/// A prefiltered environment as binding 11 reads it: every level's texels (rgb, w = 0)
+/// one after another, then the irradiance map; where each starts and its size.
+pub struct GpuEnv {
+    pub texels: Vec<[f32; 4]>,
+    pub info: [u32; 4],
+    pub frame: [f32; 4],
+    pub levels: [[u32; 4]; GPU_ENV_SLOTS],
+}
+
+impl GpuEnv {
+    /// None: the chain has more levels than the shader's 8 slots (the prefilter makes at
+    /// most 7).
+    pub fn new(env: &crate::scene::PrefilteredEnv, background: bool) -> Option<GpuEnv> {
+        if env.levels.len() > GPU_ENV_SLOTS - 1 || env.levels.is_empty() {
+            return None;
+        }
+        let mut texels = Vec::new();
+        let mut levels = [[0u32; 4]; GPU_ENV_SLOTS];
+        let mut push = |slot: usize, l: &crate::scene::env_prefilter::EnvLevel| {
+            levels[slot] = [texels.len() as u32, l.width, l.height, 0];
+            texels.extend(l.texels.iter().map(|t| t.extend(0.0).to_array()));
+        };
+        for (k, l) in env.levels.iter().enumerate() {
+            push(k, l);
+        }
+        push(GPU_ENV_SLOTS - 1, &env.irradiance);
+        let (sin, cos) = env.map.rotate_deg().to_radians().sin_cos();
+        Some(GpuEnv { texels, info: [env.levels.len() as u32, background as u32, 0, 0], frame: [cos, sin, env.sigma0, 0.0], levels })
+    }
+}

@@ -32,6 +32,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use crate::brdf::cloth_atan2;
 use crate::image::{Image, ImageError};
 
 /// Largest map side accepted (16k × 8k is already 1.6 GB of f32 RGB).
@@ -205,12 +206,15 @@ impl EnvMap {
 
     /// Texture coordinates (u, v) ∈ [0, 1)² of a world direction toward the light.
     pub fn uv(&self, w: Vec3) -> (f32, f32) {
+        // acos through the twins' own arctangent, so that env_shading.glsl's lookups
+        // land on the same texels (GPUs' inverse trigonometry is their own).
         let l = self.to_local(w.normalize_or(Vec3::Z));
-        let mut u = l.x.atan2(-l.z) / TAU;
+        let mut u = cloth_atan2(l.x, -l.z) / TAU;
         if u < 0.0 {
             u += 1.0;
         }
-        let v = l.y.clamp(-1.0, 1.0).acos() / PI;
+        let y = l.y.clamp(-1.0, 1.0);
+        let v = cloth_atan2((1.0 - y * y).max(0.0).sqrt(), y) / PI;
         (u.min(ONE_MINUS), v.min(ONE_MINUS))
     }
 

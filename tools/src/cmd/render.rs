@@ -54,15 +54,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
             anyhow::bail!("--mesh draws the fabric on a mesh, which only the GPU renderer does; the CPU renderer draws the tile on its plane");
         }
-        if args.env.envmap.is_some() {
-            if args.backend == Backend::Gpu || args.scene.mesh.is_some() {
-                anyhow::bail!("--envmap is drawn by the CPU renderer only so far (the GLSL twin of env_shading is not written yet): use --backend cpu, without --mesh");
-            }
-            if args.backend == Backend::Auto {
-                println!("note: --envmap is drawn by the CPU renderer only so far; rendering with it");
-            }
-            println!("backend: CPU renderer of hybrid models");
-            return super::render_cpu::run(model, &args.camera, &args.light, &args.env, &args.output, &args.cpu);
+        if args.env.envmap.is_some() && args.scene.mesh.is_some() {
+            anyhow::bail!("--envmap lights a tile (compute pass and CPU renderer); on a --mesh it is not drawn yet (hybrid_mesh.frag does not map the environment into tile space)");
         }
         let device = match args.backend {
             Backend::Cpu => None,
@@ -79,7 +72,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return match device {
             Some(device) => {
                 println!("backend: GPU renderer of hybrid models");
-                super::render_gpu::run(device, model, args.scene.mesh.as_deref(), args.scene.uv_scale, &args.camera, &args.light, &args.output, &args.cpu, args.repeat)
+                super::render_gpu::run(device, model, args.scene.mesh.as_deref(), args.scene.uv_scale, &args.camera, &args.light, &args.env, &args.output, &args.cpu, args.repeat)
             }
             None => {
                 println!("backend: CPU renderer of hybrid models");

@@ -109,16 +109,11 @@ impl CpuRenderFlags {
     }
 }
 
-/// Renders `model_path` with the CPU renderer and writes the image.
-pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvArgs, output: &OutputArgs, flags: &CpuRenderFlags) -> Result<()> {
-    output.validate()?;
-    let model = read_file(model_path)?;
-    // The default framing and --view-angles aim at the model's box: the tile's x–y box
-    // from the top plane down through the depth range, i.e. the source volume's box.
-    let camera = camera.camera(model.bounds())?;
-    let mut options = flags.options()?;
+/// The lights of a render and, with `--envmap`, the prefiltered map in `options`: with
+/// a map the delta light is there only when a light flag asks for it (as `fabric
+/// reference`); the map's compact sources join the lights when the render runs.
+pub fn lights_and_env(light: &LightArgs, env: &EnvArgs, options: &mut CpuRenderOptions) -> Result<Vec<Light>> {
     let map = env.env_map()?;
-    // With a map, the delta light is there only when asked for (as `fabric reference`).
     let lights: Vec<Light> = if map.is_none() || light.given() { vec![light.light()?] } else { Vec::new() };
     if let Some(map) = map {
         let t = std::time::Instant::now();
@@ -137,6 +132,18 @@ pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvA
         );
         options.env = Some(EnvLight { background: !env.no_background, ..EnvLight::new(prefiltered) });
     }
+    Ok(lights)
+}
+
+/// Renders `model_path` with the CPU renderer and writes the image.
+pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvArgs, output: &OutputArgs, flags: &CpuRenderFlags) -> Result<()> {
+    output.validate()?;
+    let model = read_file(model_path)?;
+    // The default framing and --view-angles aim at the model's box: the tile's x–y box
+    // from the top plane down through the depth range, i.e. the source volume's box.
+    let camera = camera.camera(model.bounds())?;
+    let mut options = flags.options()?;
+    let lights = lights_and_env(light, env, &mut options)?;
     if options.shadows == ShadowMode::FromModel {
         println!("shadowing: {} (as the model was fitted)", if model.meta.fitted_with_shadowing { "on" } else { "off" });
     } else if (options.shadows == ShadowMode::On) != model.meta.fitted_with_shadowing {

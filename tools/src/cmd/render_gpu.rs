@@ -13,7 +13,7 @@ use fabric_runtime::scene::Mesh;
 use fabric_runtime::vk::{Device, DeviceOptions};
 
 use super::render_cpu::CpuRenderFlags;
-use crate::args::{CameraArgs, LightArgs, OutputArgs};
+use crate::args::{CameraArgs, EnvArgs, LightArgs, OutputArgs};
 
 /// Opens the Vulkan device named `name` (or the best one).
 pub fn open_device(name: &Option<String>) -> Result<std::sync::Arc<Device>> {
@@ -23,13 +23,13 @@ pub fn open_device(name: &Option<String>) -> Result<std::sync::Arc<Device>> {
 /// Renders `model_path` on the GPU `device` — on a tile seen by the camera, or tiled
 /// over `mesh`'s UVs (`uv_scale` repeats per UV unit) — and writes the image.
 #[allow(clippy::too_many_arguments)] // the command's flag groups, passed through
-pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>, uv_scale: glam::Vec2, camera: &CameraArgs, light: &LightArgs, output: &OutputArgs, flags: &CpuRenderFlags, repeat: u32) -> Result<()> {
+pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>, uv_scale: glam::Vec2, camera: &CameraArgs, light: &LightArgs, env: &EnvArgs, output: &OutputArgs, flags: &CpuRenderFlags, repeat: u32) -> Result<()> {
     output.validate()?;
     let model = read_file(model_path)?;
     let mesh = mesh.map(Mesh::by_name).transpose()?;
     let camera = camera.camera(mesh.as_ref().map_or(model.bounds(), |m| m.bounds()))?;
-    let light = light.light()?;
     let mut options = flags.options()?;
+    let lights = super::render_cpu::lights_and_env(light, env, &mut options)?;
     if mesh.is_some() {
         // On a mesh the tile repeats over the UVs.
         options.periodic = true;
@@ -48,7 +48,6 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
     let upload_start = std::time::Instant::now();
     let gpu_model = pass.upload(&model, options.periodic).with_context(|| format!("cannot upload {}", model_path.display()))?;
     println!("uploaded {:.1} MB in {:.2?}", gpu_model.bytes as f64 / 1e6, upload_start.elapsed());
-    let lights = [light];
     let draw = || match &mesh {
         Some(m) => pass.render_mesh(&gpu_model, m, uv_scale, &camera, &lights, &options, None),
         None => pass.render(&gpu_model, &camera, &lights, &options, None),
@@ -80,7 +79,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
         first,
         info.name
     );
-    let variant = format!("variant: flyaways {}, shadows {}, {} light(s)", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights);
+    let variant = format!("variant: flyaways {}, shadows {}, {} light(s){}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" });
     match &mesh {
         Some(m) => println!("{variant}; on a mesh of {} triangles, {}x{} tiles per UV unit", m.indices.len() / 3, uv_scale.x, uv_scale.y),
         None => println!("{variant}; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}", s.tile_pixels, s.surface_pixels, s.flyaway_pixels, s.level_pixels),

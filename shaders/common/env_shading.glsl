@@ -1,0 +1,207 @@
+// env_shading.glsl — environment light of a hit: each lobe as a mixture of at most 16
+// spherical Gaussians, each one lookup in the prefiltered environment (paper §7.2,
+// "Extensions"; runtime/HYBRID_FORMAT.md §6).
+//
+// Twin: runtime/src/cpu/env_shading.rs (env_erf, lobe_env_nodes,
+// texel_env_response; the module docs there are the definition) and
+// runtime/src/scene/env_prefilter.rs (EnvLevel::bilinear, PrefilteredEnv::blurred,
+// PrefilteredEnv::irradiance; EnvMap::uv). Included only by programs that define
+// HYBRID_ENV (hybrid.comp): binding 11 holds the levels, params.env_* say where.
+#ifndef ENV_SHADING_GLSL
+#define ENV_SHADING_GLSL
+
+#include "common/render_params.glsl"
+
+// The prefiltered levels, then the irradiance map: rgb per texel, row 0 at the map's
+// zenith, x fastest (GpuEnv, runtime/src/hybrid/gpu_layout.rs).
+layout(std430, set = 0, binding = 11) readonly buffer EnvBlock { vec4 env_texels[]; };
+
+#define ENV_NODES 16u
+#define ENV_PI 3.14159265358979
+#define ENV_TAU 6.28318530717959
+
+// EnvMap::uv: world direction -> (u, v) in [0, 1)^2 (Mitsuba's envmap layout, Z up,
+// turned by the map's rotation). acos through the twins' own arctangent.
+vec2 env_uv(vec3 w) {
+    float c = params.env_frame.x;
+    float s = params.env_frame.y;
+    vec3 r = vec3(c * w.x + s * w.y, -s * w.x + c * w.y, w.z);
+    vec3 l = vec3(r.x, r.z, -r.y);
+    float u = cloth_atan2(l.x, -l.z) / ENV_TAU;
+    if (u < 0.0) {
+        u += 1.0;
+    }
+    float y = clamp(l.y, -1.0, 1.0);
+    float v = cloth_atan2(sqrt(max(1.0 - y * y, 0.0)), y) / ENV_PI;
+    const float ONE_MINUS = 1.0 - 5.96046448e-8;
+    return vec2(min(u, ONE_MINUS), min(v, ONE_MINUS));
+}
+
+// EnvLevel::bilinear of level k (8: the irradiance map): wraps in u, clamps in v.
+vec3 env_bilinear(uint k, vec2 uv) {
+    uvec4 lv = params.env_levels[k];
+    int w = int(lv.y);
+    int h = int(lv.z);
+    float x = uv.x * float(w) - 0.5;
+    float y = clamp(uv.y * float(h) - 0.5, 0.0, float(h - 1));
+    float x0 = floor(x);
+    float y0 = floor(y);
+    float fx = x - x0;
+    float fy = y - y0;
+    int xi = int(x0) % w;
+    xi = xi < 0 ? xi + w : xi;
+    int x1 = (xi + 1) % w;
+    int yi = int(y0);
+    int y1 = min(yi + 1, h - 1);
+    uint base = lv.x;
+    vec3 a = env_texels[base + uint(yi * w + xi)].rgb;
+    vec3 b = env_texels[base + uint(yi * w + x1)].rgb;
+    vec3 c = env_texels[base + uint(y1 * w + xi)].rgb;
+    vec3 d = env_texels[base + uint(y1 * w + x1)].rgb;
+    vec3 top = mix(a, b, fx);
+    vec3 bottom = mix(c, d, fx);
+    return mix(top, bottom, fy);
+}
+
+// PrefilteredEnv::blurred: the mean radiance under a normalized SG of width sigma.
+vec3 env_blurred(vec3 w, float sigma) {
+    vec2 uv = env_uv(w);
+    float sigma0 = params.env_frame.z;
+    uint count = params.env_info.x;
+    float l = sigma > sigma0 ? log2(sigma / sigma0) : 0.0;
+    l = min(l, float(count - 1u));
+    uint l0 = uint(floor(l));
+    float f = l - float(l0);
+    vec3 a = env_bilinear(l0, uv);
+    if (f <= 0.0 || l0 + 1u >= count) {
+        return a;
+    }
+    return mix(a, env_bilinear(l0 + 1u, uv), f);
+}
+
+// PrefilteredEnv::irradiance.
+vec3 env_irradiance(vec3 n) {
+    return env_bilinear(8u, env_uv(n));
+}
+
+// erf, Abramowitz & Stegun 7.1.26.
+float env_erf(float x) {
+    float s = x < 0.0 ? -1.0 : 1.0;
+    x = abs(x);
+    float t = 1.0 / (1.0 + 0.3275911 * x);
+    float y = 1.0 - (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
+    return s * y;
+}
+
+// One lobe's SG mixture, each SG read from the prefiltered map (lobe_env_nodes).
+vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric) {
+    vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
+    if (max(max(k.x, k.y), k.z) <= 0.0) {
+        return vec3(0.0);
+    }
+    ClothAngles ao = cloth_angles(f, wo);
+    float theta_c = -ao.theta;
+    float beta = min(max(lobe.beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
+    bool falloff_on = reading == CLOTH_READING_BOUNDED && lobe.gamma > 0.0;
+    const float HALF_PI = 1.57079632679490;
+    float phi_lo = -HALF_PI;
+    float phi_hi = HALF_PI;
+    if (falloff_on) {
+        float g3 = 3.0 * lobe.gamma;
+        phi_lo = max(phi_lo, -ao.phi - g3);
+        phi_hi = min(phi_hi, -ao.phi + g3);
+    }
+    if (!(phi_hi > phi_lo)) {
+        return vec3(0.0);
+    }
+    float theta_ext = min(6.0 * beta, ENV_PI);
+    float phi_arc = max((phi_hi - phi_lo) * cos(theta_c), 1e-4);
+    uint k_theta = uint(clamp(round(sqrt(float(ENV_NODES) * theta_ext / phi_arc)), 1.0, 4.0));
+    uint k_phi = max(ENV_NODES / k_theta, 1u);
+    float d_phi = (phi_hi - phi_lo) / float(k_phi);
+    vec3 sum = vec3(0.0);
+    for (uint c = 0u; c < k_phi; ++c) {
+        float phi = phi_lo + (float(c) + 0.5) * d_phi;
+        float sp = sin(phi);
+        float cp = cos(phi);
+        float pf = cloth_phi_falloff(phi + ao.phi, lobe.gamma);
+        bool bounded = reading == CLOTH_READING_BOUNDED;
+        float beta_eff = bounded ? beta : max(beta * pf, CLOTH_BETA_MIN);
+        vec3 r_phi = k * (cloth_shadowing(cp, a) * (bounded ? pf : 1.0));
+        if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
+            continue;
+        }
+        float lo = max(theta_c - 3.0 * beta_eff, -HALF_PI);
+        float hi = min(theta_c + 3.0 * beta_eff, HALF_PI);
+        if (!(hi > lo)) {
+            continue;
+        }
+        float d_theta = (hi - lo) / float(k_theta);
+        float inv = 1.0 / (beta_eff * 1.41421356237310);
+        for (uint i = 0u; i < k_theta; ++i) {
+            float t0 = lo + float(i) * d_theta;
+            float t1 = lo + float(i + 1u) * d_theta;
+            float mass = 0.5 * (env_erf((t1 - theta_c) * inv) - env_erf((t0 - theta_c) * inv));
+            if (!(mass > 1e-7)) {
+                continue;
+            }
+            float g0 = cloth_gaussian(t0 - theta_c, beta_eff);
+            float g1 = cloth_gaussian(t1 - theta_c, beta_eff);
+            float theta = clamp(theta_c + beta_eff * beta_eff * (g0 - g1) / mass, t0, t1);
+            float st = sin(theta);
+            float ct = cos(theta);
+            vec3 wi = f.t * st + (f.n * cp + f.b * sp) * ct;
+            float cos_n = ct * cp;
+            if (!(cos_n > 0.0) || !(wi.z > 0.0)) {
+                continue;
+            }
+            float cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
+            float fresnel = cloth_fresnel(eta, sqrt(max(0.5 * (1.0 + cos_diff), 0.0)));
+            vec3 r = r_phi * (fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
+            vec3 weight = r * (mass * d_phi * ct);
+            if (max(max(weight.x, weight.y), weight.z) <= 0.0) {
+                continue;
+            }
+            float sigma = max(min(beta_eff, 0.4 * d_theta), 0.4 * d_phi * ct);
+            sum += weight * env_blurred(wi, sigma);
+        }
+    }
+    return sum;
+}
+
+// texel_env_response: k_d E(n_0) V_f(n_0) + the lobes' SG mixtures, the texel edited by
+// `e` as texel_response edits it.
+vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric) {
+    uvec4 h = brdf_headers[r.header];
+    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y)) * e.tint;
+    float rs = sin(e.tangent_rotation);
+    float rc = cos(e.tangent_rotation);
+    rotate = rotate && e.tangent_rotation != 0.0;
+    float eta = f16_value(h.y >> 16);
+    float a = f16_value(h.z);
+    uint count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
+    uint first = r.lobe_base + h.w;
+    vec3 n0 = r.framed ? octahedral_decode(brdf_lobes[first].x) : r.frame.n;
+    kd = min(max(kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    vec3 resp = vec3(0.0);
+    if (max(max(kd.x, kd.y), kd.z) > 0.0) {
+        resp = kd * env_irradiance(n0) * (volumetric ? volume_factor(n0, wo) : 1.0);
+    }
+    for (uint j = 0u; j < count; ++j) {
+        uvec4 l = brdf_lobes[first + j];
+        ClothFrame f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
+        if (rotate) {
+            vec3 t = f.t * rc + f.b * rs;
+            f.t = t;
+            f.b = cross(f.n, t);
+        }
+        ClothLobe lobe = packed_lobe(l);
+        lobe.k *= e.tint;
+        lobe.beta *= e.roughness_scale;
+        lobe.gamma *= e.roughness_scale;
+        resp += lobe_env(lobe, eta, a, f, wo, reading, volumetric);
+    }
+    return resp;
+}
+
+#endif // ENV_SHADING_GLSL
