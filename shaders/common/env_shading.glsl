@@ -2,7 +2,7 @@
 // spherical Gaussians, each one lookup in the prefiltered environment (paper §7.2,
 // "Extensions"; runtime/HYBRID_FORMAT.md §6).
 //
-// Twin: runtime/src/cpu/env_shading.rs (env_erf, lobe_env_nodes,
+// Twin: runtime/src/cpu/env_shading.rs (env_erf, env_theta_cells, lobe_env_nodes,
 // texel_env_response; the module docs there are the definition) and
 // runtime/src/scene/env_prefilter.rs (EnvLevel::bilinear, PrefilteredEnv::blurred,
 // PrefilteredEnv::irradiance; EnvMap::uv). Included only by programs that define
@@ -93,6 +93,50 @@ float env_erf(float x) {
     return s * y;
 }
 
+// One theta cell of a lobe's band (ThetaCell): centroid sin and cos, mass of G, Fresnel
+// there, its share of the SG's width.
+struct ThetaCell {
+    float s;
+    float c;
+    float mass;
+    float fresnel;
+    float sigma;
+};
+
+// env_theta_cells: the k_theta cells of theta_c +- 3 beta' within [-pi/2, pi/2].
+void env_theta_cells(float theta_c, float beta_eff, uint k_theta, ClothAngles ao, float eta, out ThetaCell cells[4]) {
+    for (uint i = 0u; i < 4u; ++i) {
+        cells[i] = ThetaCell(0.0, 0.0, 0.0, 0.0, 0.0);
+    }
+    const float HALF_PI = 1.57079632679490;
+    float lo = max(theta_c - 3.0 * beta_eff, -HALF_PI);
+    float hi = min(theta_c + 3.0 * beta_eff, HALF_PI);
+    if (!(hi > lo)) {
+        return;
+    }
+    float d_theta = (hi - lo) / float(k_theta);
+    float inv = 1.0 / (beta_eff * 1.41421356237310);
+    float e0 = env_erf((lo - theta_c) * inv);
+    float g0 = cloth_gaussian(lo - theta_c, beta_eff);
+    for (uint i = 0u; i < k_theta; ++i) {
+        float t0 = lo + float(i) * d_theta;
+        float t1 = lo + float(i + 1u) * d_theta;
+        float e1 = env_erf((t1 - theta_c) * inv);
+        float g1 = cloth_gaussian(t1 - theta_c, beta_eff);
+        float mass = 0.5 * (e1 - e0);
+        if (mass > 1e-7) {
+            float theta = clamp(theta_c + beta_eff * beta_eff * (g0 - g1) / mass, t0, t1);
+            float st = sin(theta);
+            float ct = cos(theta);
+            float cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
+            float fresnel = cloth_fresnel(eta, sqrt(max(0.5 * (1.0 + cos_diff), 0.0)));
+            cells[i] = ThetaCell(st, ct, mass, fresnel, min(beta_eff, 0.4 * d_theta));
+        }
+        e0 = e1;
+        g0 = g1;
+    }
+}
+
 // One lobe's SG mixture, each SG read from the prefiltered map (lobe_env_nodes).
 vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
@@ -119,50 +163,41 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
     uint k_theta = uint(clamp(round(sqrt(float(ENV_NODES) * theta_ext / phi_arc)), 1.0, 4.0));
     uint k_phi = max(ENV_NODES / k_theta, 1u);
     float d_phi = (phi_hi - phi_lo) / float(k_phi);
+    bool bounded = reading == CLOTH_READING_BOUNDED;
+    // The bounded reading's theta cells are the same in every phi column: computed once.
+    ThetaCell cells[4];
+    if (bounded) {
+        env_theta_cells(theta_c, beta, k_theta, ao, eta, cells);
+    }
     vec3 sum = vec3(0.0);
     for (uint c = 0u; c < k_phi; ++c) {
         float phi = phi_lo + (float(c) + 0.5) * d_phi;
         float sp = sin(phi);
         float cp = cos(phi);
         float pf = cloth_phi_falloff(phi + ao.phi, lobe.gamma);
-        bool bounded = reading == CLOTH_READING_BOUNDED;
-        float beta_eff = bounded ? beta : max(beta * pf, CLOTH_BETA_MIN);
         vec3 r_phi = k * (cloth_shadowing(cp, a) * (bounded ? pf : 1.0));
         if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
             continue;
         }
-        float lo = max(theta_c - 3.0 * beta_eff, -HALF_PI);
-        float hi = min(theta_c + 3.0 * beta_eff, HALF_PI);
-        if (!(hi > lo)) {
-            continue;
+        if (!bounded) {
+            env_theta_cells(theta_c, max(beta * pf, CLOTH_BETA_MIN), k_theta, ao, eta, cells);
         }
-        float d_theta = (hi - lo) / float(k_theta);
-        float inv = 1.0 / (beta_eff * 1.41421356237310);
         for (uint i = 0u; i < k_theta; ++i) {
-            float t0 = lo + float(i) * d_theta;
-            float t1 = lo + float(i + 1u) * d_theta;
-            float mass = 0.5 * (env_erf((t1 - theta_c) * inv) - env_erf((t0 - theta_c) * inv));
-            if (!(mass > 1e-7)) {
+            ThetaCell cell = cells[i];
+            if (!(cell.mass > 0.0)) {
                 continue;
             }
-            float g0 = cloth_gaussian(t0 - theta_c, beta_eff);
-            float g1 = cloth_gaussian(t1 - theta_c, beta_eff);
-            float theta = clamp(theta_c + beta_eff * beta_eff * (g0 - g1) / mass, t0, t1);
-            float st = sin(theta);
-            float ct = cos(theta);
-            vec3 wi = f.t * st + (f.n * cp + f.b * sp) * ct;
-            float cos_n = ct * cp;
+            vec3 wi = f.t * cell.s + (f.n * cp + f.b * sp) * cell.c;
+            float cos_n = cell.c * cp;
             if (!(cos_n > 0.0) || !(wi.z > 0.0)) {
                 continue;
             }
-            float cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
-            float fresnel = cloth_fresnel(eta, sqrt(max(0.5 * (1.0 + cos_diff), 0.0)));
-            vec3 r = r_phi * (fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
-            vec3 weight = r * (mass * d_phi * ct);
+            vec3 r = r_phi * (cell.fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
+            vec3 weight = r * (cell.mass * d_phi * cell.c);
             if (max(max(weight.x, weight.y), weight.z) <= 0.0) {
                 continue;
             }
-            float sigma = max(min(beta_eff, 0.4 * d_theta), 0.4 * d_phi * ct);
+            float sigma = max(cell.sigma, 0.4 * d_phi * cell.c);
             sum += weight * env_blurred(wi, sigma);
         }
     }

@@ -119,3 +119,28 @@ fn baked_presets_on_their_tile_and_on_a_sphere() {
         check_golden(&format!("hybrid-{preset}-sphere"), &sphere, 2.0, TOLERANCE).unwrap();
     }
 }
+
+/// One baked preset lit by the built-in sky (its sun a light, the rest through the
+/// lobes' SG mixtures) on its tile, by the GPU renderer; the CPU twin draws the same.
+#[test]
+fn baked_twill_under_the_built_in_sky() {
+    use fabric_runtime::cpu::{CpuRenderOptions, EnvLight, ShadowMode, render};
+    use fabric_runtime::gpu::HybridPass;
+    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, PrefilteredEnv, Sky};
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models");
+    let model = fabric_runtime::hybrid::format::read_file(&dir.join("twill.hyb")).unwrap();
+    let g = pass.upload(&model, true).unwrap();
+    let sky = Sky::default().env_map(EnvMapOptions::default()).unwrap();
+    let env = EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap());
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, env: Some(env), ..Default::default() };
+    let b = model.bounds();
+    let top = Vec3::new(b.center().x, b.center().y, b.max.z);
+    let cam = Camera::orbit_orthographic(40.0, 30.0, top, b.size().length() + 1.0, 1.5 * b.size().x, 160, 160);
+    let gpu = pass.render(&g, &cam, &[], &opts, None).unwrap().image;
+    let cpu = render(&model, &cam, &[], &opts).unwrap();
+    let rmse = fabric_runtime::metrics::relative_rmse(&gpu, &cpu).unwrap();
+    assert!(rmse < 1e-3, "GPU vs CPU under the sky: {rmse}");
+    check_golden("hybrid-twill-sky-tile", &gpu, 2.0, TOLERANCE).unwrap();
+}

@@ -167,6 +167,9 @@ def prepare_mitsuba_inputs(fabric, out):
     k = 1.0 - mat["roughness"] ** 2
     S = np.stack([1 - k * f[..., 0] ** 2, 1 - k * f[..., 1] ** 2, 1 - k * f[..., 2] ** 2,
                   -k * f[..., 0] * f[..., 1], -k * f[..., 0] * f[..., 2], -k * f[..., 1] * f[..., 2]], -1)
+    # Empty voxels contribute S = I whatever they store (our EmptyOrientation default,
+    # baker/src/reference/medium.rs), so trilinear S near a fiber's edge matches ours.
+    S[rho[..., 0] <= 0.0] = np.array([1, 1, 1, 0, 0, 0], np.float32)
     paths = {"density": out / "density.vol", "albedo": out / "albedo.vol", "S": out / "S.vol"}
     write_vol(paths["density"], rho, bbox)
     write_vol(paths["albedo"], np.clip(alb, 0, 1), bbox)

@@ -85,54 +85,86 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
     let k_theta = ((ENV_NODES as f32 * theta_ext / phi_arc).sqrt().round() as usize).clamp(1, 4);
     let k_phi = (ENV_NODES / k_theta).max(1);
     let d_phi = (phi_hi - phi_lo) / k_phi as f32;
+    // The bounded reading's θ cells are the same in every φ column: computed once.
+    let mut cells = [ThetaCell::default(); 4];
+    if reading == BrdfReading::Bounded {
+        env_theta_cells(theta_c, beta, k_theta, &ao, eta, &mut cells);
+    }
     for c in 0..k_phi {
         let phi = phi_lo + (c as f32 + 0.5) * d_phi;
         let (sp, cp) = phi.sin_cos();
-        let (beta_eff, falloff) = match reading {
-            BrdfReading::Bounded => (beta, cloth_phi_falloff(phi + ao.phi, lobe.gamma)),
-            BrdfReading::Width => ((beta * cloth_phi_falloff(phi + ao.phi, lobe.gamma)).max(BETA_MIN), 1.0),
-        };
+        let falloff = cloth_phi_falloff(phi + ao.phi, lobe.gamma);
+        let bounded = reading == BrdfReading::Bounded;
         // What of R depends on φ alone: the shadowing (cos φ_i = cos φ on the band) and
-        // the bounded reading's falloff.
-        let r_phi = k * (cloth_shadowing(cp, a) * falloff);
+        // the bounded reading's falloff (the width reading folds it into β').
+        let r_phi = k * (cloth_shadowing(cp, a) * if bounded { falloff } else { 1.0 });
         if r_phi.max_element() <= 0.0 {
             continue;
         }
-        let lo = (theta_c - 3.0 * beta_eff).max(-FRAC_PI_2);
-        let hi = (theta_c + 3.0 * beta_eff).min(FRAC_PI_2);
-        if !(hi > lo) {
-            continue;
+        if !bounded {
+            env_theta_cells(theta_c, (beta * falloff).max(BETA_MIN), k_theta, &ao, eta, &mut cells);
         }
-        let d_theta = (hi - lo) / k_theta as f32;
-        let inv = 1.0 / (beta_eff * std::f32::consts::SQRT_2);
-        for i in 0..k_theta {
-            let (t0, t1) = (lo + i as f32 * d_theta, lo + (i + 1) as f32 * d_theta);
-            let (z0, z1) = ((t0 - theta_c) * inv, (t1 - theta_c) * inv);
-            let mass = 0.5 * (env_erf(z1) - env_erf(z0));
-            if !(mass > 1e-7) {
+        for cell in &cells[..k_theta] {
+            if !(cell.mass > 0.0) {
                 continue;
             }
-            // Centroid of N(θ_c, β'²) on [t0, t1]: θ_c + β'² (g(t0) − g(t1)) / mass.
-            let g = |t: f32| cloth_gaussian(t - theta_c, beta_eff);
-            let theta = (theta_c + beta_eff * beta_eff * (g(t0) - g(t1)) / mass).clamp(t0, t1);
-            let (st, ct) = theta.sin_cos();
-            let wi = f.t * st + (f.n * cp + f.b * sp) * ct;
+            let wi = f.t * cell.sin + (f.n * cp + f.b * sp) * cell.cos;
             // n·ω_i = cos θ cos φ; ω_i's angles are the node's own, so R needs no atan2:
             // R = k F(η, cos θ_d) max(cos φ_i, 0)^a P · n·ω_i · V_f (cloth_lobe / G).
-            let cos_n = ct * cp;
+            let cos_n = cell.cos * cp;
             if !(cos_n > 0.0) || !(wi.z > 0.0) {
                 continue;
             }
-            let cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
-            let fresnel = cloth_fresnel(eta, (0.5 * (1.0 + cos_diff)).max(0.0).sqrt());
-            let r = r_phi * (fresnel * cos_n * if volumetric { volume_factor(wi, wo) } else { 1.0 });
-            let weight = r * (mass * d_phi * ct);
+            let r = r_phi * (cell.fresnel * cos_n * if volumetric { volume_factor(wi, wo) } else { 1.0 });
+            let weight = r * (cell.mass * d_phi * cell.cos);
             if weight.max_element() <= 0.0 {
                 continue;
             }
-            let sigma = (beta_eff.min(0.4 * d_theta)).max(0.4 * d_phi * ct);
+            let sigma = cell.sigma.max(0.4 * d_phi * cell.cos);
             emit(EnvNode { axis: wi, weight, sigma });
         }
+    }
+}
+
+/// One θ cell of a lobe's band: its Gaussian centroid (sin, cos), its mass of G, the
+/// Fresnel factor there and its width's share of the SG's σ.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ThetaCell {
+    pub sin: f32,
+    pub cos: f32,
+    pub mass: f32,
+    pub fresnel: f32,
+    pub sigma: f32,
+}
+
+/// The `k_theta` cells of θ_c ± 3β' ∩ [−π/2, π/2] (mass 0: empty), erf and G at each
+/// boundary once.
+pub fn env_theta_cells(theta_c: f32, beta_eff: f32, k_theta: usize, ao: &crate::brdf::ClothAngles, eta: f32, cells: &mut [ThetaCell; 4]) {
+    *cells = [ThetaCell::default(); 4];
+    let lo = (theta_c - 3.0 * beta_eff).max(-FRAC_PI_2);
+    let hi = (theta_c + 3.0 * beta_eff).min(FRAC_PI_2);
+    if !(hi > lo) {
+        return;
+    }
+    let d_theta = (hi - lo) / k_theta as f32;
+    let inv = 1.0 / (beta_eff * std::f32::consts::SQRT_2);
+    let mut e0 = env_erf((lo - theta_c) * inv);
+    let mut g0 = cloth_gaussian(lo - theta_c, beta_eff);
+    for (i, cell) in cells.iter_mut().enumerate().take(k_theta) {
+        let (t0, t1) = (lo + i as f32 * d_theta, lo + (i + 1) as f32 * d_theta);
+        let e1 = env_erf((t1 - theta_c) * inv);
+        let g1 = cloth_gaussian(t1 - theta_c, beta_eff);
+        let mass = 0.5 * (e1 - e0);
+        if mass > 1e-7 {
+            // Centroid of N(θ_c, β'²) on [t0, t1]: θ_c + β'² (g(t0) − g(t1)) / mass.
+            let theta = (theta_c + beta_eff * beta_eff * (g0 - g1) / mass).clamp(t0, t1);
+            let (st, ct) = theta.sin_cos();
+            let cos_diff = ao.cos_theta * ct + ao.sin_theta * st;
+            let fresnel = cloth_fresnel(eta, (0.5 * (1.0 + cos_diff)).max(0.0).sqrt());
+            *cell = ThetaCell { sin: st, cos: ct, mass, fresnel, sigma: beta_eff.min(0.4 * d_theta) };
+        }
+        e0 = e1;
+        g0 = g1;
     }
 }
 
