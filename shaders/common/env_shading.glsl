@@ -63,20 +63,15 @@ vec3 env_bilinear(uint k, vec2 uv) {
     return mix(top, bottom, fy);
 }
 
-// PrefilteredEnv::blurred: the mean radiance under a normalized SG of width sigma.
+// PrefilteredEnv::blurred: the mean radiance under a normalized SG of width sigma, from
+// the level nearest sigma in log2.
 vec3 env_blurred(vec3 w, float sigma) {
     vec2 uv = env_uv(w);
     float sigma0 = params.env_frame.z;
     uint count = params.env_info.x;
     float l = sigma > sigma0 ? log2(sigma / sigma0) : 0.0;
     l = min(l, float(count - 1u));
-    uint l0 = uint(floor(l));
-    float f = l - float(l0);
-    vec3 a = env_bilinear(l0, uv);
-    if (f <= 0.0 || l0 + 1u >= count) {
-        return a;
-    }
-    return mix(a, env_bilinear(l0 + 1u, uv), f);
+    return env_bilinear(uint(l + 0.5), uv);
 }
 
 // PrefilteredEnv::irradiance.

