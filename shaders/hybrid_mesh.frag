@@ -22,6 +22,9 @@
 // sideways on a curved mesh keeps marching the (periodic) plane.
 #extension GL_GOOGLE_include_directive : require
 
+// Environment light (specialization constant HAS_ENV, binding 11): lookups go back to the
+// world through this fragment's M (g_env_to_world).
+#define HYBRID_ENV
 #include "common/trace.glsl"
 
 layout(push_constant) uniform Push {
@@ -69,7 +72,9 @@ void main() {
         b_w = in_tangent.w * cross(n, t_w);
     }
     float k = sqrt(length(t_w) * length(b_w));
-    mat3 to_tile = inverse(mat3(t_w, b_w, k * n));
+    mat3 to_world = mat3(t_w, b_w, k * n);
+    mat3 to_tile = inverse(to_world);
+    g_env_to_world = to_world;
     vec3 d_world = cam.origin.w != 0.0 ? normalize(p - cam.origin.xyz) : cam.forward.xyz;
     vec3 d = to_tile * d_world;
     float len = length(d);

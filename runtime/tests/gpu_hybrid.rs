@@ -358,8 +358,24 @@ fn environment_light_matches_the_cpu_twin() {
     let lit = pass.render(&g, &near, &[], &base, None).unwrap().image;
     let unlit = pass.render(&g, &near, &[Light::directional(Vec3::Z, Vec3::ZERO)], &CpuRenderOptions { env: None, ..base.clone() }, None).unwrap().image;
     assert!(lit.mean() > 10.0 * unlit.mean().max(1e-9));
-    // On a mesh it is refused rather than drawn without the map.
-    let mesh = pass.upload_mesh(&fabric_runtime::scene::Mesh::plane(2.0, 2.0)).unwrap();
-    assert!(matches!(pass.prepare_mesh(&g, &mesh, glam::Vec2::ONE, &near, &[], &base, None), Err(GpuRenderError::EnvUnsupported)));
+    // On a plane mesh (M = I: tile directions are world directions) the mesh pass draws
+    // what the tile pass draws, as in the_tile_on_a_plane_mesh_matches_the_tile_seen_directly.
+    let s = examples::synthetic_model(64, 7);
+    let gs = pass.upload(&s, true).unwrap();
+    let t = s.tile;
+    let offset = Vec3::new(t.origin.x + 2.0 * t.size.x, t.origin.y + 2.0 * t.size.y, t.top_z);
+    let plane = fabric_runtime::scene::Mesh::plane(4.0 * t.size.x, 4.0 * t.size.y);
+    let cam = Camera { origin: Vec3::new(0.2, -0.6, 0.5), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 96, height: 72 };
+    let opts = CpuRenderOptions { level: LevelChoice::Fixed(0), ..base.clone() };
+    let on_mesh = pass.render_mesh(&gs, &plane, glam::Vec2::splat(4.0), &cam, &[], &opts, None).unwrap();
+    assert!(on_mesh.variant.env);
+    let moved = Camera { origin: cam.origin + offset, target: cam.target + offset, ..cam };
+    let direct = pass.render(&gs, &moved, &[], &opts, None).unwrap();
+    let rmse = relative_rmse(&on_mesh.image, &direct.image).unwrap();
+    println!("plane mesh vs tile under the sky: relative RMSE {rmse:.2e}");
+    assert!(on_mesh.image.mean() > 0.0 && rmse < 0.01, "plane mesh vs tile under the sky: {rmse}");
+    // A sphere under the sky: finite and lit.
+    let sphere = pass.render_mesh(&gs, &fabric_runtime::scene::Mesh::sphere(0.5, 64, 32), glam::Vec2::new(4.0, 2.0), &Camera { origin: Vec3::new(0.0, -2.0, 0.6), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 64, height: 64 }, &[], &opts, None).unwrap();
+    assert!(sphere.image.mean() > 0.0 && sphere.image.first_non_finite().is_none());
     assert_no_validation_errors(&device);
 }

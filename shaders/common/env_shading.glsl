@@ -20,9 +20,14 @@ layout(std430, set = 0, binding = 11) readonly buffer EnvBlock { vec4 env_texels
 #define ENV_PI 3.14159265358979
 #define ENV_TAU 6.28318530717959
 
+// Shading directions -> world: the identity for the tile pass; the mesh pass sets its
+// fragment's M = [T_w B_w kN] (tile offsets to world, hybrid_mesh.frag).
+mat3 g_env_to_world = mat3(1.0);
+
 // EnvMap::uv: world direction -> (u, v) in [0, 1)^2 (Mitsuba's envmap layout, Z up,
 // turned by the map's rotation). acos through the twins' own arctangent.
-vec2 env_uv(vec3 w) {
+vec2 env_uv(vec3 w_shading) {
+    vec3 w = normalize(g_env_to_world * w_shading);
     float c = params.env_frame.x;
     float s = params.env_frame.y;
     vec3 r = vec3(c * w.x + s * w.y, -s * w.x + c * w.y, w.z);

@@ -37,7 +37,7 @@ pub enum GpuRenderError {
     TooManyLights { count: usize },
     #[error("the model was uploaded for a {} tile but the render asks for a {} one", if *.uploaded { "periodic" } else { "clamped" }, if *.uploaded { "clamped" } else { "periodic" })]
     Periodic { uploaded: bool },
-    #[error("environment lighting is drawn on a tile by the compute pass, not on a mesh yet (hybrid_mesh.frag does not map the map into tile space), and needs at most 8 prefiltered levels")]
+    #[error("the prefiltered environment has more levels than the shader's 8 slots")]
     EnvUnsupported,
     #[error("{count} pixel(s) came out NaN or infinite, the first at ({x}, {y}): a bug in the renderer, please report it")]
     NonFinite { count: u32, x: u32, y: u32 },
@@ -58,7 +58,7 @@ pub struct Variant {
     pub relief: bool,
     /// The lobe loop's bound: the most lobes of any BRDF in the model (1..=8).
     pub lobes: u32,
-    /// Environment light (compute pass only).
+    /// Environment light.
     pub env: bool,
 }
 
@@ -101,6 +101,8 @@ pub struct MeshDraw {
     set: DescriptorSet,
     _params: Buffer,
     _mask: Buffer,
+    _env: Buffer,
+    _unused: Buffer,
     push: MeshPush,
     background: Vec3,
     pub variant: Variant,
@@ -148,7 +150,7 @@ impl HybridPass {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
         let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 12], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 9], vk::ShaderStageFlags::FRAGMENT)?;
+        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 12], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
         let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
         let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
@@ -244,10 +246,8 @@ impl HybridPass {
     /// alive until the frame that records it has completed.
     #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
     pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<MeshDraw, GpuRenderError> {
+        let lights = &options.lights_with_env(lights)[..];
         let shadows = validate_view(&model.model, camera, lights, options)?;
-        if options.env.is_some() {
-            return Err(GpuRenderError::EnvUnsupported);
-        }
         if lights.len() > GPU_MAX_LIGHTS {
             return Err(GpuRenderError::TooManyLights { count: lights.len() });
         }
@@ -259,13 +259,20 @@ impl HybridPass {
         }
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
-        let (params, mask) = self.params_buffers(camera, lights, options, None)?;
+        let env = self.env_upload(options)?;
+        let (params, mask) = self.params_buffers(camera, lights, options, env.as_ref().map(|(e, _)| e))?;
+        let env_buf = match env {
+            Some((_, b)) => b,
+            None => Buffer::with_data(&self.device, "hybrid environment", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?,
+        };
+        // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
+        let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask)]);
+        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf)]);
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
         let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
-        Ok(MeshDraw { pipeline, set, _params: params, _mask: mask, push, background: options.background, variant, levels: model.levels })
+        Ok(MeshDraw { pipeline, set, _params: params, _mask: mask, _env: env_buf, _unused: unused, push, background: options.background, variant, levels: model.levels })
     }
 
     /// Records `draw` of `mesh` into `target` (attachments cleared to the background;
@@ -306,6 +313,14 @@ impl HybridPass {
         }
         let stats = RenderStats { pixels: camera.width as u64 * camera.height as u64, level_pixels: vec![0; model.levels], ..Default::default() };
         Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant: draw.variant })
+    }
+
+    /// The prefiltered environment of `options` laid out for binding 11, and its buffer.
+    fn env_upload(&self, options: &CpuRenderOptions) -> Result<Option<(GpuEnv, Buffer)>, GpuRenderError> {
+        let Some(e) = &options.env else { return Ok(None) };
+        let env = GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?;
+        let buf = Buffer::with_data(&self.device, "hybrid environment", bytemuck::cast_slice(&env.texels), vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        Ok(Some((env, buf)))
     }
 
     /// The frame's parameters and its edit mask, in host-visible buffers.
@@ -361,16 +376,15 @@ impl HybridPass {
         if options.periodic != model.periodic {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
-        let env = match &options.env {
-            Some(e) => Some(GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?),
-            None => None,
-        };
+        let env = self.env_upload(options)?;
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
-        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref())?;
-        let env_texels: &[[f32; 4]] = env.as_ref().map_or(&[[0.0; 4]][..], |e| &e.texels);
-        let env_buf = Buffer::with_data(dev, "hybrid environment", bytemuck::cast_slice(env_texels), vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref().map(|(e, _)| e))?;
+        let env_buf = match env {
+            Some((_, b)) => b,
+            None => Buffer::with_data(dev, "hybrid environment", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?,
+        };
         let (w, h) = (camera.width, camera.height);
         // Device-local: on a discrete GPU the shader must not write across the bus.
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;

@@ -54,9 +54,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
             anyhow::bail!("--mesh draws the fabric on a mesh, which only the GPU renderer does; the CPU renderer draws the tile on its plane");
         }
-        if args.env.envmap.is_some() && args.scene.mesh.is_some() {
-            anyhow::bail!("--envmap lights a tile (compute pass and CPU renderer); on a --mesh it is not drawn yet (hybrid_mesh.frag does not map the environment into tile space)");
-        }
         let device = match args.backend {
             Backend::Cpu => None,
             Backend::Gpu => Some(super::render_gpu::open_device(&args.scene.device)?),

@@ -33,7 +33,7 @@ use winit::raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use winit::window::{Window, WindowId};
 
 use super::render_cpu::CpuRenderFlags;
-use crate::args::{CameraArgs, LightArgs, MeshSceneArgs};
+use crate::args::{CameraArgs, EnvArgs, LightArgs, MeshSceneArgs};
 
 #[derive(Args, Debug)]
 pub struct ViewArgs {
@@ -54,6 +54,10 @@ pub struct ViewArgs {
     pub camera: CameraArgs,
     #[command(flatten)]
     pub light: LightArgs,
+    /// With a model: `--envmap FILE|sky` lights it with an environment map (its sources
+    /// as lights, the rest through the lobes' SG mixtures).
+    #[command(flatten)]
+    pub env: EnvArgs,
     #[command(flatten)]
     pub render: CpuRenderFlags,
 }
@@ -93,7 +97,8 @@ struct Viewer {
     window: Window,
     camera: Camera,
     orbit: Orbit,
-    light: Light,
+    /// The delta light right-drag moves (none with an environment map and no light flag).
+    light: Option<Light>,
     exposure: f32,
     /// Hybrid content: the options and edits drawn with, the tint index, the mask.
     options: CpuRenderOptions,
@@ -118,6 +123,11 @@ impl Viewer {
         let surface = Arc::new(Surface::new(device.instance(), display, window.window_handle().context("window handle")?.as_raw())?);
         let mut options = args.render.options()?;
         options.periodic = true;
+        if args.env.envmap.is_some() && args.model.is_none() {
+            anyhow::bail!("--envmap lights a hybrid model: give MODEL.hyb");
+        }
+        // With a map, the delta light only when a light flag asks for it.
+        let lights = super::render_cpu::lights_and_env(&args.light, &args.env, &mut options)?;
         let content = match &args.model {
             Some(path) => {
                 let model = read_file(path)?;
@@ -140,13 +150,13 @@ impl Viewer {
         let orbit = Orbit::from_camera(&camera);
         println!("device: {} ({}); window {}x{}, swapchain {:?}", device.info().name, device.info().kind, camera.width, camera.height, frame_loop.swapchain_format());
         let mask = options.edits.mask.clone();
-        Ok(Viewer { frame_loop, window, camera, orbit, light: args.light.light()?, exposure: args.exposure, options, tint: 0, mask, hybrid: args.model.is_some() })
+        Ok(Viewer { frame_loop, window, camera, orbit, light: lights.first().copied(), exposure: args.exposure, options, tint: 0, mask, hybrid: args.model.is_some() })
     }
 
     fn draw(&mut self) -> Result<()> {
         self.orbit.apply(&mut self.camera);
         let size = self.window.inner_size();
-        self.frame_loop.draw((size.width, size.height), &mut self.camera, &[self.light], &self.options, self.exposure)?;
+        self.frame_loop.draw((size.width, size.height), &mut self.camera, self.light.as_slice(), &self.options, self.exposure)?;
         let f = &self.frame_loop;
         let edits = if self.hybrid {
             let e = &self.options.edits;
@@ -258,7 +268,7 @@ impl ApplicationHandler for App {
                             v.orbit.theta = (v.orbit.theta - dy).clamp(0.01, std::f32::consts::PI - 0.01);
                         }
                         MouseButton::Right => {
-                            if let Light::Directional { dir_to_light, .. } = &mut v.light {
+                            if let Some(Light::Directional { dir_to_light, .. }) = &mut v.light {
                                 let rot = glam::Quat::from_rotation_z(-dx) * glam::Quat::from_axis_angle(Vec3::Z.cross(*dir_to_light).normalize_or(Vec3::X), -dy);
                                 *dir_to_light = (rot * *dir_to_light).normalize();
                             }
@@ -312,7 +322,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let f = &viewer.frame_loop;
     println!("{} frames, last GPU frame time {:.3} ms on {}", f.frames, f.gpu_ms, f.device().info().name);
     if let Some(v) = f.variant {
-        println!("variant: flyaways {}, shadows {}, {} light(s)", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights);
+        println!("variant: flyaways {}, shadows {}, {} light(s){}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" });
     }
     let device = f.device().clone();
     drop(viewer); // destruction can report validation errors too
