@@ -16,9 +16,10 @@ fn tmp(name: &str) -> std::path::PathBuf {
     d.join(name)
 }
 
-/// A 12×12×4 slab of fibers along x, written as a fabric directory.
-fn tiny_fabric() -> std::path::PathBuf {
-    let dir = tmp("tiny");
+/// A 12×12×4 slab of fibers along x, written as a fabric directory of its own per test
+/// (tests run in parallel: one must not read while another rewrites it).
+fn tiny_fabric(name: &str) -> std::path::PathBuf {
+    let dir = tmp(&format!("tiny-{name}"));
     let mut v = FabricVolume::new([12, 12, 4], Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.25)), MaterialParams { density_scale: 8.0, roughness: 0.3 });
     for z in 1..4 {
         for y in 0..12 {
@@ -35,7 +36,7 @@ fn tiny_fabric() -> std::path::PathBuf {
 
 #[test]
 fn reference_renders_deterministically_and_diff_measures_it() {
-    let dir = tiny_fabric();
+    let dir = tiny_fabric("deterministic");
     let run = |out: &std::path::Path, threads: &str, seed: &str| {
         let o = fabric()
             .args(["reference"])
@@ -69,7 +70,7 @@ fn reference_renders_deterministically_and_diff_measures_it() {
 
 #[test]
 fn bad_input_is_a_clear_error() {
-    let dir = tiny_fabric();
+    let dir = tiny_fabric("bad");
     for (args, needle) in [
         (vec!["reference", "/nonexistent/fabric", "--out", "/tmp/x.exr"], "/nonexistent/fabric"),
         (vec!["reference", dir.to_str().unwrap(), "--spp", "0", "--out", "/tmp/x.exr"], "samples per pixel"),
@@ -85,7 +86,7 @@ fn bad_input_is_a_clear_error() {
 
 #[test]
 fn reference_lights_with_an_environment_map() {
-    let dir = tiny_fabric();
+    let dir = tiny_fabric("env");
     // The built-in sky, and the same sky written to an EXR and read back: one image.
     let sky = fabric_runtime::scene::Sky::default().to_image();
     let sky_exr = tmp("sky.exr");

@@ -259,12 +259,8 @@ impl HybridPass {
         }
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
-        let env = self.env_upload(options)?;
-        let (params, mask) = self.params_buffers(camera, lights, options, env.as_ref().map(|(e, _)| e))?;
-        let env_buf = match env {
-            Some((_, b)) => b,
-            None => Buffer::with_data(&self.device, "hybrid environment", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?,
-        };
+        let (env, env_buf) = self.env_upload(options)?;
+        let (params, mask) = self.params_buffers(camera, lights, options, env.as_ref())?;
         // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
         let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
         let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
@@ -315,12 +311,16 @@ impl HybridPass {
         Ok(HybridFrame { image, stats, gpu_ms: timestamps.elapsed_ms(0, 1)?, variant: draw.variant })
     }
 
-    /// The prefiltered environment of `options` laid out for binding 11, and its buffer.
-    fn env_upload(&self, options: &CpuRenderOptions) -> Result<Option<(GpuEnv, Buffer)>, GpuRenderError> {
-        let Some(e) = &options.env else { return Ok(None) };
-        let env = GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?;
-        let buf = Buffer::with_data(&self.device, "hybrid environment", bytemuck::cast_slice(&env.texels), vk::BufferUsageFlags::STORAGE_BUFFER)?;
-        Ok(Some((env, buf)))
+    /// The prefiltered environment of `options` laid out for binding 11, and the
+    /// binding's buffer (one zero texel without a map: the binding is always bound).
+    fn env_upload(&self, options: &CpuRenderOptions) -> Result<(Option<GpuEnv>, Buffer), GpuRenderError> {
+        let env = match &options.env {
+            Some(e) => Some(GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?),
+            None => None,
+        };
+        let texels: &[[f32; 4]] = env.as_ref().map_or(&[[0.0; 4]][..], |e| &e.texels);
+        let buf = Buffer::with_data(&self.device, "hybrid environment", bytemuck::cast_slice(texels), vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        Ok((env, buf))
     }
 
     /// The frame's parameters and its edit mask, in host-visible buffers.
@@ -376,15 +376,11 @@ impl HybridPass {
         if options.periodic != model.periodic {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
-        let env = self.env_upload(options)?;
+        let (env, env_buf) = self.env_upload(options)?;
         let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
-        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref().map(|(e, _)| e))?;
-        let env_buf = match env {
-            Some((_, b)) => b,
-            None => Buffer::with_data(dev, "hybrid environment", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?,
-        };
+        let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref())?;
         let (w, h) = (camera.width, camera.height);
         // Device-local: on a discrete GPU the shader must not write across the bus.
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;
