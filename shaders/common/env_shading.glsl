@@ -207,34 +207,15 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
 // texel_env_response: k_d E(n_0) V_f(n_0) + the lobes' SG mixtures, the texel edited by
 // `e` as texel_response edits it.
 vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric) {
-    uvec4 h = brdf_headers[r.header];
-    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y)) * e.tint;
-    float rs = sin(e.tangent_rotation);
-    float rc = cos(e.tangent_rotation);
-    rotate = rotate && e.tangent_rotation != 0.0;
-    float eta = f16_value(h.y >> 16);
-    float a = f16_value(h.z);
-    uint count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
-    uint first = r.lobe_base + h.w;
-    vec3 n0 = r.framed ? octahedral_decode(brdf_lobes[first].x) : r.frame.n;
-    kd = min(max(kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    EditedTexel t = edited_texel(r, e, rotate);
     vec3 resp = vec3(0.0);
-    if (max(max(kd.x, kd.y), kd.z) > 0.0) {
-        resp = kd * env_irradiance(n0) * (volumetric ? volume_factor(n0, wo) : 1.0);
+    if (max(max(t.kd.x, t.kd.y), t.kd.z) > 0.0) {
+        resp = t.kd * env_irradiance(t.n0) * (volumetric ? volume_factor(t.n0, wo) : 1.0);
     }
-    for (uint j = 0u; j < count; ++j) {
-        uvec4 l = brdf_lobes[first + j];
-        ClothFrame f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
-        if (rotate) {
-            vec3 t = f.t * rc + f.b * rs;
-            f.t = t;
-            f.b = cross(f.n, t);
-        }
-        ClothLobe lobe = packed_lobe(l);
-        lobe.k *= e.tint;
-        lobe.beta *= e.roughness_scale;
-        lobe.gamma *= e.roughness_scale;
-        resp += lobe_env(lobe, eta, a, f, wo, reading, volumetric);
+    for (uint j = 0u; j < t.count; ++j) {
+        ClothFrame f;
+        ClothLobe lobe = edited_lobe(r, e, t, j, f);
+        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric);
     }
     return resp;
 }

@@ -44,38 +44,64 @@ Edit hit_edit(vec3 p) {
     return Edit(vec3(1.0) + m * (params.edit_tint.rgb - vec3(1.0)), 1.0 + m * (params.edit_roughness - 1.0), m * params.edit_rotation);
 }
 
+// A texel's record, edited by `e` (Edit::apply): k_d, eta, a, its lobes' place, lobe
+// 0's normal (which carries k_d), and the tangent rotation where `rotate`.
+struct EditedTexel {
+    vec3 kd;
+    float eta;
+    float a;
+    uint count;
+    uint first;
+    vec3 n0;
+    bool rotate;
+    float rs;
+    float rc;
+};
+
+EditedTexel edited_texel(TexelRef r, Edit e, bool rotate) {
+    uvec4 h = brdf_headers[r.header];
+    EditedTexel t;
+    t.kd = min(max(vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y)) * e.tint, vec3(0.0)), vec3(CLOTH_K_MAX));
+    t.rs = sin(e.tangent_rotation);
+    t.rc = cos(e.tangent_rotation);
+    t.rotate = rotate && e.tangent_rotation != 0.0;
+    t.eta = f16_value(h.y >> 16);
+    t.a = f16_value(h.z);
+    t.count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
+    t.first = r.lobe_base + h.w;
+    // Lobe 0's frame carries k_d (per-texel tables have at least one lobe).
+    t.n0 = r.framed ? octahedral_decode(brdf_lobes[t.first].x) : r.frame.n;
+    return t;
+}
+
+// Lobe j of an edited texel and its frame (tangent rotated, widths scaled, tinted).
+ClothLobe edited_lobe(TexelRef r, Edit e, EditedTexel t, uint j, out ClothFrame f) {
+    uvec4 l = brdf_lobes[t.first + j];
+    f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
+    if (t.rotate) {
+        vec3 tt = f.t * t.rc + f.b * t.rs;
+        f.t = tt;
+        f.b = cross(f.n, tt);
+    }
+    ClothLobe lobe = packed_lobe(l);
+    lobe.k *= e.tint;
+    lobe.beta *= e.roughness_scale;
+    lobe.gamma *= e.roughness_scale;
+    return lobe;
+}
+
 // Reflected radiance toward wo per unit irradiance from wi, the texel edited by `e`
 // (its tangents rotated where `rotate`; Edit::apply):
 // k_d max(n_0.wi, 0) + sum_j cloth_lobe_j max(n_j.wi, 0).
 vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint reading) {
-    uvec4 h = brdf_headers[r.header];
-    vec3 kd = vec3(f16_value(h.x), f16_value(h.x >> 16), f16_value(h.y)) * e.tint;
-    float rs = sin(e.tangent_rotation);
-    float rc = cos(e.tangent_rotation);
-    rotate = rotate && e.tangent_rotation != 0.0;
-    float eta = f16_value(h.y >> 16);
-    float a = f16_value(h.z);
-    uint count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
-    uint first = r.lobe_base + h.w;
-    // Lobe 0's frame carries k_d (per-texel tables have at least one lobe).
-    vec3 n0 = r.framed ? octahedral_decode(brdf_lobes[first].x) : r.frame.n;
-    kd = min(max(kd, vec3(0.0)), vec3(CLOTH_K_MAX));
-    vec3 resp = kd * max(dot(n0, wi), 0.0);
-    for (uint j = 0u; j < count; ++j) {
-        uvec4 l = brdf_lobes[first + j];
-        ClothFrame f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
-        if (rotate) {
-            vec3 t = f.t * rc + f.b * rs;
-            f.t = t;
-            f.b = cross(f.n, t);
-        }
+    EditedTexel t = edited_texel(r, e, rotate);
+    vec3 resp = t.kd * max(dot(t.n0, wi), 0.0);
+    for (uint j = 0u; j < t.count; ++j) {
+        ClothFrame f;
+        ClothLobe lobe = edited_lobe(r, e, t, j, f);
         float cos_i = dot(f.n, wi);
         if (cos_i > 0.0) {
-            ClothLobe lobe = packed_lobe(l);
-            lobe.k *= e.tint;
-            lobe.beta *= e.roughness_scale;
-            lobe.gamma *= e.roughness_scale;
-            resp += cloth_lobe(lobe, eta, a, f, wi, wo, reading) * cos_i;
+            resp += cloth_lobe(lobe, t.eta, t.a, f, wi, wo, reading) * cos_i;
         }
     }
     return resp;
