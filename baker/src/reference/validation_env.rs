@@ -40,7 +40,7 @@ fn white_furnace_under_a_constant_environment() {
     // Albedo 1 everywhere and L = 0.5 from every direction: every path, scattered or
     // not, sees exactly 0.5 in expectation, from above and from below the sheet.
     let v = random_fabric([8, 8, 6], 0.5, 6.0, Vec3::ONE, 3);
-    let env = EnvMap::constant(Vec3::splat(0.5));
+    let env = EnvMap::constant(Vec3::splat(0.5)).unwrap();
     let lighting = Lighting::env(&env);
     for (k, wo) in [direction_from_angles(20.0, 30.0), direction_from_angles(75.0, -100.0), direction_from_angles(130.0, 200.0)].into_iter().enumerate() {
         let (mean, se, stats) = sheet_radiance(&v, &lighting, PathSettings::default(), wo, 20_000, 40 + k as u64);

@@ -230,7 +230,7 @@ mod tests {
     fn a_constant_environment_gives_the_hemispherical_integral() {
         // Under L = 1 the SG mixture must integrate the lobe itself: compare with the
         // brute-force integral of the same response.
-        let env_map = EnvMap::constant(Vec3::ONE);
+        let env_map = EnvMap::constant(Vec3::ONE).unwrap();
         let env = PrefilteredEnv::new(&env_map);
         let cases = [
             (ClothLobe { k: Vec3::ONE, beta: 0.05, gamma: 0.0 }, Vec3::Z, Vec3::X),

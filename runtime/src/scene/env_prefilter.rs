@@ -257,7 +257,7 @@ mod tests {
 
     #[test]
     fn a_constant_map_stays_constant_and_integrates_exactly() {
-        let env = PrefilteredEnv::new(&EnvMap::constant(Vec3::splat(0.7)));
+        let env = PrefilteredEnv::new(&EnvMap::constant(Vec3::splat(0.7)).unwrap());
         for (k, l) in env.levels.iter().enumerate() {
             assert!(l.texels.iter().all(|t| (*t - Vec3::splat(0.7)).abs().max_element() < 1e-5), "level {k}");
         }

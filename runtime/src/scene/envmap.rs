@@ -152,10 +152,11 @@ impl EnvMap {
         Ok(EnvMap { width: w, height: h, texels, rotate: options.rotate_deg.to_radians(), marginal, conditional, texel_p, name: name.into() })
     }
 
-    /// A map of one radiance everywhere (the furnace).
-    pub fn constant(radiance: Vec3) -> EnvMap {
+    /// A map of one radiance everywhere (the furnace); refused like any texel if the
+    /// radiance is negative or not finite.
+    pub fn constant(radiance: Vec3) -> Result<EnvMap, EnvMapError> {
         let image = Image::from_fn(8, 4, |_, _| radiance);
-        EnvMap::from_image(&image, EnvMapOptions::default(), Path::new("constant")).expect("a constant non-negative map is valid")
+        EnvMap::from_image(&image, EnvMapOptions::default(), Path::new("constant"))
     }
 
     pub fn width(&self) -> u32 {
@@ -199,9 +200,7 @@ impl EnvMap {
 
     /// World directions from the map's frame.
     pub fn to_world(&self, l: Vec3) -> Vec3 {
-        let r = Vec3::new(l.x, -l.z, l.y);
-        let (s, c) = self.rotate.sin_cos();
-        Vec3::new(c * r.x - s * r.y, s * r.x + c * r.y, r.z)
+        placed(l, self.rotate)
     }
 
     /// Texture coordinates (u, v) ∈ [0, 1)² of a world direction toward the light.
@@ -287,6 +286,15 @@ impl EnvMap {
 }
 
 const ONE_MINUS: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// A map-frame direction placed in the world: R_x(+90°) (the map's Y up becomes +Z),
+/// then `rotate` radians about +Z.
+#[inline]
+pub fn placed(l: Vec3, rotate: f32) -> Vec3 {
+    let r = Vec3::new(l.x, -l.z, l.y);
+    let (s, c) = rotate.sin_cos();
+    Vec3::new(c * r.x - s * r.y, s * r.x + c * r.y, r.z)
+}
 
 /// The direction at (u, v) in the map's own frame (Y up): θ = vπ from +Y, φ = 2πu
 /// from −Z toward +X, Mitsuba's `envmap` parameterization.
@@ -404,7 +412,7 @@ mod tests {
 
     #[test]
     fn constant_map_integral_is_four_pi_l() {
-        let m = EnvMap::constant(Vec3::splat(0.5));
+        let m = EnvMap::constant(Vec3::splat(0.5)).unwrap();
         assert!((m.integral() - Vec3::splat(2.0 * PI)).abs().max_element() < 1e-4);
         let s = m.sample(0.3, 0.7);
         assert!((s.radiance / s.pdf - Vec3::splat(2.0 * PI)).abs().max_element() < 1e-3, "constant map: L/p = 4πL");
@@ -421,6 +429,7 @@ mod tests {
         assert!(matches!(EnvMap::from_image(&Image::new(1, 1), ok, Path::new("s")), Err(EnvMapError::BadSize { .. })));
         assert!(matches!(EnvMap::from_image(&Image::new(4, 2), EnvMapOptions { scale: f32::INFINITY, ..ok }, Path::new("s")), Err(EnvMapError::BadScale(_))));
         assert!(matches!(EnvMap::from_image(&Image::new(4, 2), EnvMapOptions { rotate_deg: f32::NAN, ..ok }, Path::new("s")), Err(EnvMapError::BadRotation(_))));
+        assert!(matches!(EnvMap::constant(Vec3::new(0.0, f32::INFINITY, 0.0)), Err(EnvMapError::BadTexel { .. })));
         // A black map is valid and samples nothing.
         let black = EnvMap::from_image(&Image::new(4, 2), ok, Path::new("b")).unwrap();
         assert_eq!(black.sample(0.5, 0.5).pdf, 0.0);

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::envmap::{EnvMap, EnvMapError, EnvMapOptions, row_solid_angle};
+use super::envmap::{EnvMap, EnvMapError, EnvMapOptions, local_direction, placed, row_solid_angle};
 use super::direction_from_angles;
 use crate::image::Image;
 
@@ -52,11 +52,10 @@ impl Default for Sky {
 impl Sky {
     /// The sky as an equirectangular image in the map frame of `EnvMap` (rotation 0).
     pub fn to_image(&self) -> Image {
-        let frame = EnvMap::constant(Vec3::ONE);
         let sun = self.sun_dir.normalize_or(Vec3::Z);
         let cos_disk = self.sun_radius_deg.clamp(0.01, 45.0).to_radians().cos();
         let (w, h) = (self.width.max(2), self.height.max(1));
-        let centre = |x: u32, y: u32| frame.direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+        let centre = |x: u32, y: u32| placed(local_direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32), 0.0);
         // Solid angle of the disk as the map sees it: the texels whose centre is inside.
         let mut disk_omega = 0.0f64;
         for y in 0..h {
