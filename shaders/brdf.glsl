@@ -283,4 +283,39 @@ vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading)
     return cloth_brdf(p, f, wi, wo, reading) * max(dot(f.n, wi), 0.0);
 }
 
+// THE TRANSMISSION TERM of a BSDF texel (format 1.3): diffuse kd and one lobe about the
+// transmitted direction. All zeros: nothing comes through.
+struct ClothTransmission {
+    vec3 kd;
+    ClothLobe lobe;
+};
+
+// w mirrored through the tile plane (z -> -z).
+vec3 cloth_mirror_z(vec3 w) {
+    return vec3(w.x, w.y, -w.z);
+}
+
+// f_t(wi, wo) for directions on opposite sides of the tile plane (wi.z * wo.z < 0):
+//   f_t = k_dt + k_t * G(theta_l* + theta_u; beta_t) * P(phi_l* + phi_u; gamma_t)
+// u = whichever direction is above the plane, l* = the other mirrored through it, angles
+// in frame f (the texel's lobe-0 frame); bounded shape, no Fresnel, no shadowing. Peaks
+// straight through (wo = -wi for n = z) and is symmetric in (wi, wo). Same side: 0.
+vec3 cloth_transmission(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
+    if (!(wi.z * wo.z < 0.0)) {
+        return vec3(0.0);
+    }
+    vec3 upper = wi.z > 0.0 ? wi : wo;
+    vec3 lower = wi.z > 0.0 ? wo : wi;
+    ClothAngles au = cloth_angles(f, upper);
+    ClothAngles al = cloth_angles(f, cloth_mirror_z(lower));
+    vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    vec3 k = min(max(t.lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
+    return kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED);
+}
+
+// Transmitted radiance per unit irradiance: f_t * |wi.z| (the tile's cosine).
+vec3 cloth_transmission_response(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
+    return cloth_transmission(t, f, wi, wo) * abs(wi.z);
+}
+
 #endif // CLOTH_BRDF_GLSL

@@ -41,7 +41,7 @@ struct GpuLevel {
     uint fly_lobe_base;
     float voxel_depth;
     float fly_edge;
-    uint pad0;
+    uint trans_base;    // first transmission record (binding 12), NO_NODE: none
     uint pad1;
     uint pad2;
 };
@@ -76,6 +76,8 @@ layout(std430, set = 0, binding = 3) readonly buffer LobeBlock { uvec4 brdf_lobe
 layout(std430, set = 0, binding = 4) readonly buffer TexelBlock { uvec2 clustered_texels[]; };
 layout(std430, set = 0, binding = 5) readonly buffer HeadBlock { uint fly_heads[]; };
 layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes[]; };
+// PackedTransmission records of every BSDF level (format 1.3; one zero record when none).
+layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec4 transmissions[]; };
 
 // i mod n in [0, n) for n > 0 (Rust's rem_euclid); GLSL's % is undefined for negative
 // operands, so only non-negative ones reach it.
@@ -103,6 +105,16 @@ uint model_reading() {
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
 }
 
+// A PackedTransmission record (runtime/src/hybrid/lobe.rs).
+ClothTransmission packed_transmission(uvec4 r) {
+    ClothTransmission t;
+    t.kd = vec3(f16_value(r.x), f16_value(r.x >> 16), f16_value(r.y));
+    t.lobe.k = vec3(f16_value(r.y >> 16), f16_value(r.z), f16_value(r.z >> 16));
+    t.lobe.beta = f16_value(r.w);
+    t.lobe.gamma = f16_value(r.w >> 16);
+    return t;
+}
+
 ClothLobe packed_lobe(uvec4 l) {
     ClothLobe lobe;
     lobe.k = vec3(f16_value(l.y >> 16), f16_value(l.z), f16_value(l.z >> 16));
@@ -121,6 +133,7 @@ struct TexelRef {
     uint lobe_base;
     bool framed;
     ClothFrame frame;
+    uint trans;         // its transmission record, NO_NODE: none (BRDF levels, flyaways)
 };
 
 // Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
@@ -129,6 +142,7 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
     uint index = j * l.dims.x + i;
     TexelRef r;
     r.lobe_base = l.lobe_base;
+    r.trans = l.trans_base == NO_NODE ? NO_NODE : l.trans_base + index;
     if (l.surface == GPU_SURFACE_CLUSTERED) {
         uvec2 t = clustered_texels[l.texel_base + index];
         r.header = l.header_base + (t.y >> 16);

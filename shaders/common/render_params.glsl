@@ -69,5 +69,8 @@ layout(constant_id = 3) const bool RELIEF = true;
 layout(constant_id = 4) const uint LOBE_BOUND = 8u;
 // Environment light (env_shading.glsl; programs that define HYBRID_ENV).
 layout(constant_id = 5) const bool HAS_ENV = false;
+// A light behind the sheet and a model with a transmission term (a BSDF, format 1.3):
+// off, a frame with every light in front pays nothing for transmission.
+layout(constant_id = 6) const bool TRANSMISSION = false;
 
 #endif // RENDER_PARAMS_GLSL

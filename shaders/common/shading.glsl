@@ -107,6 +107,32 @@ vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint read
     return resp;
 }
 
+// Transmitted radiance toward wo per unit irradiance from wi on the other side of the
+// tile plane: the texel's transmission term in lobe 0's frame, edited as its lobes are
+// (Edit::apply). Twin: texel_transmission_response (runtime/src/cpu/shading.rs).
+vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo) {
+    if (r.trans == NO_NODE) {
+        return vec3(0.0);
+    }
+    ClothTransmission t = packed_transmission(transmissions[r.trans]);
+    t.kd *= e.tint;
+    t.lobe.k *= e.tint;
+    t.lobe.beta *= e.roughness_scale;
+    t.lobe.gamma *= e.roughness_scale;
+    ClothFrame f = r.frame;
+    if (r.framed) {
+        uvec4 h = brdf_headers[r.header];
+        uvec4 l = brdf_lobes[r.lobe_base + h.w];
+        f = decode_frame(l.x, l.y & 0xffffu);
+    }
+    if (rotate && e.tangent_rotation != 0.0) {
+        vec3 tt = f.t * cos(e.tangent_rotation) + f.b * sin(e.tangent_rotation);
+        f.t = tt;
+        f.b = cross(f.n, tt);
+    }
+    return cloth_transmission_response(t, f, wi, wo);
+}
+
 // 2 / (mu_i + mu_o): the volumetric factor of a model baked with it.
 float volume_factor(vec3 wi, vec3 wo) {
     return 2.0 / max(max(wi.z, 0.0) + max(wo.z, 0.0), VOLUME_MU_MIN);
@@ -120,7 +146,7 @@ float volume_factor(vec3 wi, vec3 wo) {
 // `fiber` seen from wo.
 TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
     GpuLevel l = model.levels[level];
-    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo));
+    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE);
 }
 
 // Visibility of a light from p (height-field shadow ray); counts step-limited rays.
@@ -157,6 +183,10 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
         float dist;
         vec3 irradiance = light_at(k, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
+            continue;
+        }
+        // A light behind the sheet: only what comes through (flyaways pass nothing).
+        if (wi.z < 0.0) {
             continue;
         }
         vec3 response = texel_response(b, e, false, wi, wo, reading);
@@ -203,6 +233,20 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         float dist;
         vec3 irradiance = light_at(k, p, wi, dist);
         if (max3(irradiance) <= 0.0) {
+            continue;
+        }
+        // A light behind the sheet: the transmission term, no shadow ray, no volumetric
+        // factor (shading.rs); compiled out where no light is behind (TRANSMISSION).
+        if (wi.z < 0.0) {
+            if (TRANSMISSION) {
+                vec3 through = vec3(0.0);
+                for (uint c = 0u; c < count; ++c) {
+                    TexelRef r;
+                    float w = surface_texel(level, p, axis, taps, c, r);
+                    through += w * texel_transmission_response(r, e, true, wi, wo);
+                }
+                radiance += irradiance * through;
+            }
             continue;
         }
         vec3 response = vec3(0.0);

@@ -230,7 +230,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
         let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage).map_err(PrefilterError::Output)? } else { None };
-        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways };
+        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: None };
         report.levels.push(LevelReport {
             level,
             width: lw,

@@ -370,5 +370,58 @@ pub fn cloth_response(p: &ClothParams, f: &ClothFrame, wi: Vec3, wo: Vec3, readi
     cloth_brdf(p, f, wi, wo, reading) * f.n.dot(wi).max(0.0)
 }
 
+/// The transmission term of a BSDF texel (format 1.3; DESIGN.md §5 "Transmission"):
+/// a diffuse part k_dt and one lobe about the transmitted direction, both linear RGB.
+/// A texel without one has all zeros (nothing comes through).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClothTransmission {
+    pub kd: Vec3,
+    pub lobe: ClothLobe,
+}
+
+impl ClothTransmission {
+    /// Whether any light comes through.
+    pub fn is_zero(&self) -> bool {
+        self.kd.max_element() <= 0.0 && self.lobe.k.max_element() <= 0.0
+    }
+}
+
+/// `w` mirrored through the tile plane (z ↦ −z).
+#[inline]
+pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
+    Vec3::new(w.x, w.y, -w.z)
+}
+
+/// f_t(ω_i, ω_o) for directions on opposite sides of the tile plane (ω_i.z · ω_o.z < 0):
+/// ```text
+/// f_t = k_dt + k_t · G(θ_l* + θ_u; β_t) · P(φ_l* + φ_u; γ_t)
+/// ```
+/// u is whichever of ω_i, ω_o lies above the plane, l* the other mirrored through it
+/// ([`cloth_mirror_z`]); angles in frame `f` (the texel's lobe-0 frame). The lobe is the
+/// reflection lobe's bounded shape (no Fresnel, no shadowing) seen from the mirrored
+/// side, so with n = ẑ it peaks at ω_o = −ω_i, the straight-through direction, and the
+/// value is symmetric in (ω_i, ω_o): reciprocal by construction. Directions on the same
+/// side give 0. RGB, finite, ≥ 0.
+#[inline]
+pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: Vec3) -> Vec3 {
+    if !(wi.z * wo.z < 0.0) {
+        return Vec3::ZERO;
+    }
+    let (upper, lower) = if wi.z > 0.0 { (wi, wo) } else { (wo, wi) };
+    let au = cloth_angles(f, upper);
+    let al = cloth_angles(f, cloth_mirror_z(lower));
+    let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)
+}
+
+/// Transmitted radiance per unit irradiance: f_t · |ω_i.z| (the tile's cosine, since the
+/// light crosses the sheet rather than meeting a facet) — what a renderer multiplies by
+/// E for a light on the other side and what the transmission fit matches.
+#[inline]
+pub fn cloth_transmission_response(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: Vec3) -> Vec3 {
+    cloth_transmission(t, f, wi, wo) * wi.z.abs()
+}
+
 #[cfg(test)]
 mod tests;

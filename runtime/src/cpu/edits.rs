@@ -104,11 +104,12 @@ impl Edit {
     /// `b` edited; `rotate`: also the tangents (surface texels, not flyaways).
     pub fn apply(&self, mut b: TexelBrdf, rotate: bool) -> TexelBrdf {
         b.params.kd *= self.tint;
-        for lobe in b.params.lobes.iter_mut() {
+        for lobe in b.params.lobes.iter_mut().chain(std::iter::once(&mut b.transmission.lobe)) {
             lobe.k *= self.tint;
             lobe.beta *= self.roughness_scale;
             lobe.gamma *= self.roughness_scale;
         }
+        b.transmission.kd *= self.tint;
         if rotate && self.tangent_rotation != 0.0 {
             let (s, c) = self.tangent_rotation.sin_cos();
             for f in b.frames.iter_mut().take(MAX_LOBES) {

@@ -216,7 +216,7 @@ mod tests {
     use crate::scene::{EnvMapOptions, Sky, direction_from_angles};
 
     fn texel(kd: Vec3, lobes: &[ClothLobe], n: Vec3, t: Vec3) -> TexelBrdf {
-        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES] }
+        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES], transmission: Default::default() }
     }
 
     #[test]

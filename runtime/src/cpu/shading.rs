@@ -11,10 +11,16 @@
 //! (1 without shadowing), lobe j in its own frame (n_j, t_j); lobe 0's frame carries
 //! the diffuse term. With one shared frame this is E·V·f_r·max(n·ω_i, 0), f_r of Eq. 1:
 //! exactly what the fit matches (DESIGN.md §5, "fit radiance, not ratios").
+//!
+//! A light below the tile plane (ω_i.z < 0) reaches the viewer only through the cloth:
+//! its contribution is E · f_t · |ω_i.z|, the texel's transmission term in lobe 0's frame
+//! ([`texel_transmission_response`]), with no height-field visibility (the light crosses
+//! the sheet; the term carries its attenuation) and nothing reflected. A texel without a
+//! transmission term (a BRDF-only model) passes nothing.
 
 use glam::Vec3;
 
-use crate::brdf::{BrdfReading, K_MAX, cloth_fiber_frame, cloth_lobe};
+use crate::brdf::{BrdfReading, K_MAX, cloth_fiber_frame, cloth_lobe, cloth_transmission_response};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{Light, LightSample};
 
@@ -32,6 +38,13 @@ pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading) -
         }
     }
     r
+}
+
+/// Transmitted radiance toward `wo` per unit irradiance from `wi` on the other side of
+/// the tile plane (zero for a texel without a transmission term, or on the same side).
+#[inline]
+pub fn texel_transmission_response(b: &TexelBrdf, wi: Vec3, wo: Vec3) -> Vec3 {
+    cloth_transmission_response(&b.transmission, &b.frames[0], wi, wo)
 }
 
 /// Smallest μ_i + μ_o of the volumetric factor (caps it at 20).
@@ -65,6 +78,10 @@ pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfRe
         if s.irradiance.max_element() <= 0.0 {
             continue;
         }
+        if s.wi.z < 0.0 {
+            radiance += s.irradiance * texel_transmission_response(b, s.wi, wo);
+            continue;
+        }
         let response = texel_response(b, s.wi, wo, reading);
         if response.max_element() <= 0.0 {
             continue;
@@ -81,6 +98,10 @@ pub fn shade_blend(texels: &[(TexelBrdf, f32)], p: Vec3, wo: Vec3, lights: &[Lig
     for light in lights {
         let s = light.sample(p);
         if s.irradiance.max_element() <= 0.0 {
+            continue;
+        }
+        if s.wi.z < 0.0 {
+            radiance += s.irradiance * texels.iter().map(|(b, w)| *w * texel_transmission_response(b, s.wi, wo)).sum::<Vec3>();
             continue;
         }
         let response: Vec3 = texels.iter().map(|(b, w)| *w * texel_response(b, s.wi, wo, reading)).sum();

@@ -60,15 +60,17 @@ pub struct Variant {
     pub lobes: u32,
     /// Environment light.
     pub env: bool,
+    /// A light behind the sheet on a model with a transmission term.
+    pub transmission: bool,
 }
 
 impl Variant {
     fn specialization(&self) -> Specialization {
-        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8)).bool(5, self.env)
+        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8)).bool(5, self.env).bool(6, self.transmission)
     }
 
     fn name(&self, pass: &str) -> String {
-        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes, env {})", self.flyaways, self.shadows, self.lights, self.relief, self.lobes, self.env)
+        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes, env {}, transmission {})", self.flyaways, self.shadows, self.lights, self.relief, self.lobes, self.env, self.transmission)
     }
 }
 
@@ -77,6 +79,8 @@ pub struct GpuHybridModel {
     buffers: Vec<Buffer>,
     pub periodic: bool,
     pub has_flyaways: bool,
+    /// Whether the model has a transmission term (a BSDF).
+    pub has_transmission: bool,
     pub levels: usize,
     /// The most lobes of any BRDF (surface or flyaway, any level).
     pub max_lobes: u32,
@@ -148,9 +152,9 @@ const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
-        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 12], vk::ShaderStageFlags::COMPUTE)?;
+        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 13], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 12], vk::ShaderStageFlags::FRAGMENT)?;
+        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 13], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
         let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
         let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
@@ -182,13 +186,24 @@ impl HybridPass {
             buffers.push(Buffer::with_data(&self.device, name, &data, vk::BufferUsageFlags::STORAGE_BUFFER)?);
         }
         let max_lobes = layout.headers.iter().map(|h| h.lobe_count as u32).max().unwrap_or(1).max(1);
-        Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), levels: model.levels.len(), max_lobes, bytes, model: model.clone() })
+        Ok(GpuHybridModel { buffers, periodic, has_flyaways: model.has_flyaways(), has_transmission: model.has_transmission(), levels: model.levels.len(), max_lobes, bytes, model: model.clone() })
     }
 
     /// The variant a render of `model` with `options` under `lights` uses: the flyaway
-    /// march only where the model has flyaways and the options want them.
-    pub fn variant(model: &GpuHybridModel, lights: usize, shadows: bool, options: &CpuRenderOptions) -> Variant {
-        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights as u32, relief: true, lobes: model.max_lobes, env: options.env.is_some() }
+    /// march only where the model has flyaways and the options want them; the
+    /// transmission term only where the model has one and a light may be behind the
+    /// sheet (`behind`).
+    pub fn variant(model: &GpuHybridModel, lights: &[Light], behind: bool, shadows: bool, options: &CpuRenderOptions) -> Variant {
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights.len() as u32, relief: true, lobes: model.max_lobes, env: options.env.is_some(), transmission: model.has_transmission && behind }
+    }
+
+    /// Whether any of `lights` can be behind the tile's sheet (below its top plane, z up):
+    /// a directional light from below, or a point light under the top plane.
+    pub fn light_behind_tile(model: &GpuHybridModel, lights: &[Light]) -> bool {
+        lights.iter().any(|l| match *l {
+            Light::Directional { dir_to_light, .. } => dir_to_light.z < 0.0,
+            Light::Point { position, .. } => position.z < model.model.tile.top_z,
+        })
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
@@ -257,14 +272,15 @@ impl HybridPass {
         if !(uv_scale.is_finite() && uv_scale.min_element() > 0.0) {
             return Err(CpuRenderError::Options(format!("UV scale {uv_scale} must be positive and finite")).into());
         }
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
+        // On a mesh every light is behind some fragment.
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights, !lights.is_empty(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
         let (env, env_buf) = self.env_upload(options)?;
         let (params, mask) = self.params_buffers(camera, lights, options, env.as_ref())?;
         // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
         let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
-        let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf)]);
+        let mut resources: Vec<Resource<'_>> = model.buffers[..7].iter().map(Resource::Buffer).collect();
+        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7])]);
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
         let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
@@ -377,7 +393,7 @@ impl HybridPass {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
         let (env, env_buf) = self.env_upload(options)?;
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights.len(), shadows, options));
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights, HybridPass::light_behind_tile(model, lights), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
         let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref())?;
@@ -386,8 +402,8 @@ impl HybridPass {
         let pixels = Buffer::new(dev, "hybrid image", w as u64 * h as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC, MemoryLocation::GpuOnly)?;
         let stats = Buffer::new(dev, "hybrid stats", (STAT_WORDS * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         stats.write_mapped(&[0u8; STAT_WORDS * 4])?;
-        let mut resources: Vec<Resource<'_>> = model.buffers.iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats), Resource::Buffer(&env_buf)]);
+        let mut resources: Vec<Resource<'_>> = model.buffers[..7].iter().map(Resource::Buffer).collect();
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7])]);
         let set = DescriptorSet::new(dev, &self.set_layout, &resources)?;
         let timestamps = Timestamps::new(dev, 2)?;
         dev.record_and_run("hybrid pass", |rec| {

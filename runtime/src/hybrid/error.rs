@@ -50,6 +50,8 @@ pub enum ModelError {
     LobeParam { level: usize, lobe: usize, field: &'static str, value: f32, range: &'static str },
     #[error("flyaway lobe {lobe} of level {level}: {field} = {value} is out of range ({range})")]
     FlyawayLobeParam { level: usize, lobe: usize, field: &'static str, value: f32, range: &'static str },
+    #[error("transmission of texel {texel}, level {level}: {field} = {value} is out of range ({range})")]
+    TransmissionParam { level: usize, texel: usize, field: &'static str, value: f32, range: &'static str },
     #[error("texel ({i}, {j}) of level {level} uses cluster {index}, but the table has {len}")]
     ClusterIndex { level: usize, i: u32, j: u32, index: u32, len: usize },
     #[error("flyaway list of texel ({i}, {j}), level {level}: {link} points to node {index}, but there are {len}")]

@@ -69,7 +69,7 @@ pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f
             }
             Surface::PerTexel(table)
         };
-        out.push(Level { width: lw, height: lh, surface, flyaways: None });
+        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
     }
     let dims = [w, h, (tile.height_scale / tile.voxel_depth).round().max(1.0) as u32];
     let meta = example_meta(&tile, levels, dims);
@@ -129,7 +129,7 @@ pub fn sample_model() -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
     }
     let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
     let mut model = HybridModel { tile, height, levels, meta };
@@ -199,7 +199,7 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
     }
     // Level-0 flyaway voxels, then their downsampling.
     let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();

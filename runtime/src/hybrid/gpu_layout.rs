@@ -14,6 +14,7 @@
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
 //! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`) |
+//! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
 //!
 //! Indices stored in the records stay as the file has them (local to their table or
 //! level); a level's `*_base` is added when they are followed. The height samples and
@@ -23,7 +24,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::flyaway::FlyawayNode;
-use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe};
+use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
 use crate::cpu::heightfield::HeightTracer;
@@ -71,7 +72,10 @@ pub struct GpuLevel {
     pub voxel_depth: f32,
     /// Edge in the opacity exponent, (Δx_ℓ·Δy_ℓ·s_ℓ)^(1/3) (`cpu::flyaways::FlyawayGrid`).
     pub fly_edge: f32,
-    pub pad: [u32; 3],
+    /// First transmission record of this level in `transmissions` (binding 12), or
+    /// [`crate::hybrid::NO_NODE`] where the level has none.
+    pub trans_base: u32,
+    pub pad: [u32; 2],
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -122,6 +126,7 @@ pub struct GpuModel {
     pub texels: Vec<ClusteredTexel>,
     pub fly_heads: Vec<u32>,
     pub fly_nodes: Vec<FlyawayNode>,
+    pub transmissions: Vec<PackedTransmission>,
 }
 
 impl GpuModel {
@@ -172,6 +177,7 @@ impl GpuModel {
             texels: Vec::new(),
             fly_heads: Vec::new(),
             fly_nodes: Vec::new(),
+            transmissions: Vec::new(),
         };
         for (k, l) in model.levels.iter().enumerate() {
             let mut g = GpuLevel { dims: [l.width, l.height], header_base: out.headers.len() as u32, lobe_base: out.lobes.len() as u32, ..Default::default() };
@@ -203,9 +209,16 @@ impl GpuModel {
                 out.headers.extend_from_slice(&f.table.headers);
                 out.lobes.extend_from_slice(&f.table.lobes);
             }
+            g.trans_base = match &l.transmission {
+                Some(t) => {
+                    out.transmissions.extend_from_slice(t);
+                    (out.transmissions.len() - t.len()) as u32
+                }
+                None => crate::hybrid::NO_NODE,
+            };
             out.header.levels[k] = g;
         }
-        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len())] {
+        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len())] {
             if len >= u32::MAX as usize {
                 return Err(ModelError::Meta(format!("{len} {what}: more than the GPU layout's 32-bit indices reach")));
             }
@@ -213,9 +226,10 @@ impl GpuModel {
         Ok(out)
     }
 
-    /// The arrays as (name, bytes), in binding order 0..=6. Empty arrays are one zero
-    /// element long (Vulkan buffers cannot be empty; nothing indexes them then).
-    pub fn arrays(&self) -> [(&'static str, Vec<u8>); 7] {
+    /// The arrays as (name, bytes), in binding order 0..=6 and then 12 (the
+    /// transmission records). Empty arrays are one zero element long (Vulkan buffers
+    /// cannot be empty; nothing indexes them then).
+    pub fn arrays(&self) -> [(&'static str, Vec<u8>); 8] {
         fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
             let mut b = bytemuck::cast_slice(v).to_vec();
             if b.is_empty() {
@@ -231,6 +245,7 @@ impl GpuModel {
             ("clustered texels", bytes(&self.texels, 8)),
             ("flyaway heads", bytes(&self.fly_heads, 4)),
             ("flyaway nodes", bytes(&self.fly_nodes, 16)),
+            ("transmission records", bytes(&self.transmissions, 16)),
         ]
     }
 

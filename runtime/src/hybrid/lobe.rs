@@ -7,6 +7,7 @@
 //! | [`BrdfHeader`]     | 16    | k_d (3×f16), η, a (f16), lobe count, first lobe       |
 //! | [`PackedLobe`]     | 16    | n (oct 2×snorm16), t (angle 16), k (3×f16), β, γ (f16)     |
 //! | [`ClusteredTexel`] | 8     | n (oct 2×snorm16), t (angle 16), cluster index (u16)       |
+//! | [`PackedTransmission`] | 16 | k_dt (3×f16), k_t (3×f16), β_t, γ_t (f16) (format 1.3)     |
 //!
 //! A table is a header array plus a lobe array; header h uses lobes
 //! `lobe_offset .. lobe_offset + lobe_count`. In cluster and flyaway tables the lobes'
@@ -17,7 +18,7 @@ use glam::Vec3;
 
 use super::error::{ModelError, TableKind};
 use super::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
-use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ETA_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
+use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ClothTransmission, ETA_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
 /// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
 #[repr(C)]
@@ -63,6 +64,53 @@ pub struct ClusteredTexel {
     pub cluster: u16,
 }
 
+/// A texel's transmission term (format 1.3): k_dt, and the lobe about the transmitted
+/// direction, in the texel's lobe-0 frame ([`crate::brdf::cloth_transmission`]). 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedTransmission {
+    /// k_dt, RGB, f16 bits.
+    pub kd: [u16; 3],
+    /// k_t, RGB, f16 bits.
+    pub k: [u16; 3],
+    /// β_t (radians), f16 bits.
+    pub beta: u16,
+    /// γ_t (radians), f16 bits; 0 = the φ falloff is off.
+    pub gamma: u16,
+}
+
+impl PackedTransmission {
+    pub fn new(t: &ClothTransmission) -> PackedTransmission {
+        PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma) }
+    }
+
+    pub fn decode(&self) -> ClothTransmission {
+        let v = |b: [u16; 3]| Vec3::new(f16_value(b[0]), f16_value(b[1]), f16_value(b[2]));
+        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) } }
+    }
+
+    /// Checks one record (texel `texel` of level `level`): finite k's ≥ 0, β and γ in
+    /// the BRDF's ranges (a zero record, "nothing comes through", passes).
+    pub fn validate(&self, level: usize, texel: usize) -> Result<(), ModelError> {
+        let t = self.decode();
+        let bad = |field, value, range| ModelError::TransmissionParam { level, texel, field, value, range };
+        for (field, v) in [("k_dt.r", t.kd.x), ("k_dt.g", t.kd.y), ("k_dt.b", t.kd.z), ("k_t.r", t.lobe.k.x), ("k_t.g", t.lobe.k.y), ("k_t.b", t.lobe.k.z)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, v, "finite, >= 0"));
+            }
+        }
+        let (beta, gamma) = (t.lobe.beta, t.lobe.gamma);
+        if !((beta == 0.0 && t.lobe.k == Vec3::ZERO) || (beta >= BETA_MIN * 0.999 && beta <= BETA_MAX)) {
+            return Err(bad("beta_t", beta, "[1e-3, 1e4] (0 only with k_t = 0)"));
+        }
+        if !(gamma == 0.0 || (gamma >= GAMMA_MIN * 0.999 && gamma <= GAMMA_MAX)) {
+            return Err(bad("gamma_t", gamma, "0 (off) or [1e-3, 1e4]"));
+        }
+        Ok(())
+    }
+}
+
+const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 16);
 const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
 const _: () = assert!(core::mem::size_of::<PackedLobe>() == 16);
 const _: () = assert!(core::mem::size_of::<ClusteredTexel>() == 8);
@@ -129,11 +177,13 @@ impl BrdfHeader {
 }
 
 /// A BRDF decoded for shading: k_d, η, a and up to eight lobes, each with its own frame
-/// (all equal for a clustered texel). No allocation: fixed arrays, as in the shader.
+/// (all equal for a clustered texel), and the transmission term (zero where the level
+/// has none). No allocation: fixed arrays, as in the shader.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TexelBrdf {
     pub params: ClothParams,
     pub frames: [ClothFrame; MAX_LOBES],
+    pub transmission: ClothTransmission,
 }
 
 /// Headers and lobes: a cluster table, a flyaway table, or a level's per-texel BRDFs.
@@ -175,7 +225,7 @@ impl BrdfTable {
         for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
             params.lobes[j] = lobe.lobe();
         }
-        TexelBrdf { params, frames: [frame; MAX_LOBES] }
+        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default() }
     }
 
     /// Entry `index` with each lobe in its own frame (per-texel encoding).
@@ -187,7 +237,7 @@ impl BrdfTable {
             params.lobes[j] = lobe.lobe();
             frames[j] = lobe.frame();
         }
-        TexelBrdf { params, frames }
+        TexelBrdf { params, frames, transmission: ClothTransmission::default() }
     }
 
     /// Checks every header and lobe: counts and ranges, finite parameters in range.

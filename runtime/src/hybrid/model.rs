@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::{ModelError, TableKind};
 use super::flyaway::Flyaways;
-use super::lobe::{BrdfTable, ClusteredTexel, TexelBrdf};
+use super::lobe::{BrdfTable, ClusteredTexel, PackedTransmission, TexelBrdf};
 use super::packing::{unorm16, unorm16_value};
 use crate::brdf::BrdfReading;
 use crate::scene::Aabb;
@@ -134,19 +134,31 @@ pub struct Level {
     pub surface: Surface,
     /// The flyaway lists, if this level has any flyaway voxels.
     pub flyaways: Option<Flyaways>,
+    /// The transmission term per texel (x fastest), in each texel's lobe-0 frame: a
+    /// BSDF model (format 1.3). `None`: nothing comes through from below the sheet.
+    pub transmission: Option<Vec<PackedTransmission>>,
 }
 
 impl Level {
     /// The BRDF of texel (i, j), decoded (assumes a validated model).
     pub fn texel_brdf(&self, i: u32, j: u32) -> TexelBrdf {
         let index = (j * self.width + i) as usize;
-        match &self.surface {
+        let mut b = match &self.surface {
             Surface::Clustered { texels, table } => {
                 let t = &texels[index];
                 table.brdf_in_frame(t.cluster as usize, t.frame())
             }
             Surface::PerTexel(table) => table.brdf_framed(index),
+        };
+        if let Some(t) = &self.transmission {
+            b.transmission = t[index].decode();
         }
+        b
+    }
+
+    /// Bytes of the transmission records in the file (0 without).
+    pub fn transmission_bytes(&self) -> u64 {
+        self.transmission.as_ref().map_or(0, |t| (t.len() * size_of::<PackedTransmission>()) as u64)
     }
 
     /// Bytes of the surface encoding in the file.
@@ -230,6 +242,11 @@ impl HybridModel {
         self.tile.voxel_depth * (1u64 << level) as f32
     }
 
+    /// Whether the model is a BSDF (its levels carry a transmission term).
+    pub fn has_transmission(&self) -> bool {
+        self.levels.iter().any(|l| l.transmission.is_some())
+    }
+
     /// Whether any level has flyaway voxels.
     pub fn has_flyaways(&self) -> bool {
         self.levels.iter().any(|l| l.flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty()))
@@ -281,6 +298,14 @@ impl HybridModel {
                         return Err(ModelError::Length { what: "per-texel BRDF headers", level, expected: texels, got: table.headers.len() as u64 });
                     }
                     table.validate(TableKind::SurfaceTexels, level, 1)?;
+                }
+            }
+            if let Some(t) = &l.transmission {
+                if t.len() as u64 != texels {
+                    return Err(ModelError::Length { what: "transmission records", level, expected: texels, got: t.len() as u64 });
+                }
+                for (texel, r) in t.iter().enumerate() {
+                    r.validate(level, texel)?;
                 }
             }
             if let Some(f) = &l.flyaways {

@@ -69,13 +69,15 @@ pub struct LevelStats {
     pub flyaway_longest_list: usize,
     pub flyaway_alpha: Range,
     pub flyaway_bytes: u64,
+    /// Bytes of the transmission records (0: the level is reflection only).
+    pub transmission_bytes: u64,
     pub fit_error: Option<f32>,
     /// "WxH".
     pub resolution: String,
     /// Lobes per texel, mean and most (= lobes_per_texel's).
     pub mean_lobes: f64,
     pub max_lobes: u32,
-    /// Surface and flyaway bytes of the level.
+    /// Surface, flyaway and transmission bytes of the level.
     pub bytes: u64,
 }
 
@@ -180,10 +182,11 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         st.resolution = format!("{}x{}", st.width, st.height);
         st.mean_lobes = st.lobes_per_texel.mean;
         st.max_lobes = st.lobes_per_texel.max as u32;
-        st.bytes = st.surface_bytes + st.flyaway_bytes;
+        st.transmission_bytes = level.transmission_bytes();
+        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes;
         levels.push(st);
     }
-    let payload_bytes = height_bytes + levels.iter().map(|l| l.surface_bytes + l.flyaway_bytes).sum::<u64>();
+    let payload_bytes = height_bytes + levels.iter().map(|l| l.bytes).sum::<u64>();
     let b = m.meta.source_bbox;
     ModelStats {
         width: m.width(),

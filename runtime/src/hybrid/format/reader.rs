@@ -298,7 +298,11 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
                 table: read_table(&s, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, l)?,
             }),
         };
-        levels.push(Level { width, height, surface, flyaways });
+        let transmission = match s.get(SectionKind::Transmission, l) {
+            Some(_) => Some(s.array(SectionKind::Transmission, l)?),
+            None => None,
+        };
+        levels.push(Level { width, height, surface, flyaways, transmission });
     }
     let (source_bbox, source_dims, seed, fit_error, note) = match s.get(SectionKind::Meta, 0) {
         Some((index, data)) => parse_meta_section(index, data, mh.levels)?,

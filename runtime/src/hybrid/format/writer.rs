@@ -70,6 +70,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
             out.push((SectionKind::FlyawayHeaders, 0, level, bytes(bytemuck::cast_slice(&f.table.headers))));
             out.push((SectionKind::FlyawayLobes, 0, level, bytes(bytemuck::cast_slice(&f.table.lobes))));
         }
+        // Optional: a 1.2 reader skips it and renders the reflection alone.
+        if let Some(t) = &l.transmission {
+            out.push((SectionKind::Transmission, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
+        }
     }
     out
 }
