@@ -284,11 +284,24 @@ vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading)
 }
 
 // THE TRANSMISSION TERM of a BSDF texel (format 1.3): diffuse kd and one lobe about the
-// transmitted direction. All zeros: nothing comes through.
+// transmitted direction, attenuated along the slant path with optical depth tau. All
+// zeros: nothing comes through.
+#define CLOTH_TAU_MAX 16.0
+#define CLOTH_TRANSMISSION_MU_MIN 0.05
 struct ClothTransmission {
     vec3 kd;
     ClothLobe lobe;
+    float tau;
 };
+
+// exp(-tau (1/mu_i + 1/mu_o - 2)), mu = |cos| to the tile normal clamped to [0.05, 1],
+// tau to [0, 16]: 1 at normal incidence and view. Symmetric.
+float cloth_transmission_attenuation(float tau, float mu_i, float mu_o) {
+    float t = min(max(tau, 0.0), CLOTH_TAU_MAX);
+    float mi = min(max(abs(mu_i), CLOTH_TRANSMISSION_MU_MIN), 1.0);
+    float mo = min(max(abs(mu_o), CLOTH_TRANSMISSION_MU_MIN), 1.0);
+    return exp(-t * (1.0 / mi + 1.0 / mo - 2.0));
+}
 
 // w mirrored through the tile plane (z -> -z).
 vec3 cloth_mirror_z(vec3 w) {
@@ -296,7 +309,7 @@ vec3 cloth_mirror_z(vec3 w) {
 }
 
 // f_t(wi, wo) for directions on opposite sides of the tile plane (wi.z * wo.z < 0):
-//   f_t = k_dt + k_t * G(theta_l* + theta_u; beta_t) * P(phi_l* + phi_u; gamma_t)
+//   f_t = (k_dt + k_t * G(theta_l* + theta_u; beta_t) * P(phi_l* + phi_u; gamma_t)) * A(tau)
 // u = whichever direction is above the plane, l* = the other mirrored through it, angles
 // in frame f (the texel's lobe-0 frame); bounded shape, no Fresnel, no shadowing. Peaks
 // straight through (wo = -wi for n = z) and is symmetric in (wi, wo). Same side: 0.
@@ -310,7 +323,7 @@ vec3 cloth_transmission(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
     ClothAngles al = cloth_angles(f, cloth_mirror_z(lower));
     vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
     vec3 k = min(max(t.lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
-    return kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED);
+    return (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED)) * cloth_transmission_attenuation(t.tau, wi.z, wo.z);
 }
 
 // Transmitted radiance per unit irradiance: f_t * |wi.z| (the tile's cosine).

@@ -13,24 +13,29 @@
 //!    dense samples *and* to every training sample the model attributes to the
 //!    cluster's texels — the model's output is judged on images, so the fit matches
 //!    them; the error of the model on the training images decides whether K doubles.
-//! 5. Flyaways (§5.3.4): [`fit::flyaways`].
+//! 5. Transmission (a BSDF, §7.2 "Extensions"; `transmission: Some`): the same
+//!    configurations lit from below the sheet ([`fit::directions::backlit_pairs`]),
+//!    probed like the others, fitted per cluster and refined per texel
+//!    ([`fit::transmission`]), each texel's energy capped.
+//! 6. Flyaways (§5.3.4): [`fit::flyaways`].
 
 use std::collections::HashMap;
 use std::time::Instant;
 
-use fabric_runtime::brdf::{BrdfReading, ClothParams};
-use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, Surface, Tile};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission};
+use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, Target, fit_cluster, predict, refine_texel};
-use crate::fit::directions::{Pair, PairOptions, training_pairs};
+use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
@@ -95,6 +100,8 @@ pub struct BakeOptions {
     pub flyaways: Option<FlyawayOptions>,
     /// The mip chain (§5.3.5) built from level 0, or `None` for level 0 alone.
     pub prefilter: Option<PrefilterOptions>,
+    /// Fit a transmission term too (a BSDF, format 1.3), or `None` for reflection alone.
+    pub transmission: Option<TransmissionFitOptions>,
 }
 
 /// How the flyaways are clustered, covered and fitted.
@@ -142,6 +149,7 @@ impl Default for BakeOptions {
             surface_offset: 0.0,
             flyaways: Some(FlyawayOptions::default()),
             prefilter: Some(PrefilterOptions::default()),
+            transmission: None,
         }
     }
 }
@@ -221,10 +229,37 @@ pub struct BakeReport {
     pub flyaways: Option<FlyawayReport>,
     /// The mip chain's figures per level (fit error, lobes, bytes, time).
     pub prefilter: Option<PrefilterReport>,
+    /// The transmission fit's figures (a BSDF bake).
+    pub transmission: Option<TransmissionReport>,
     pub stage_seconds: Vec<(String, f64)>,
     pub total_seconds: f64,
     pub input_bytes: u64,
     pub model_bytes: u64,
+}
+
+/// What the transmission fit measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct TransmissionReport {
+    /// Backlit training pairs (the training pairs with ω_i mirrored below the sheet).
+    pub pairs: Vec<Pair>,
+    /// The backlit renderings' own relative error (from their two halves).
+    pub noise_floor: f64,
+    /// Training-image error with the cluster terms alone, and per pixel / over 4×4
+    /// blocks with what the model holds (refined per texel, energy capped).
+    pub cluster_error: f64,
+    pub error: f64,
+    pub block_error: f64,
+    /// Per backlit pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
+    pub pair_errors: Vec<(f64, f64)>,
+    /// The largest transmitted albedo of any texel after the cap (`albedo_estimate`: an
+    /// upper bound where below 1), and how many texels the cap scaled down.
+    pub worst_albedo: f32,
+    pub capped_texels: usize,
+    /// Clusters whose fit fell back (no samples, bad data).
+    pub problems: Vec<ClusterProblem>,
+    /// Seconds of the backlit renderings and of the fit.
+    pub render_seconds: f64,
+    pub fit_seconds: f64,
 }
 
 /// The result of a bake.
@@ -501,12 +536,26 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         .collect();
     let (error_by_kind, error_grazing, error_non_grazing) = split_errors(&predictions, &training);
 
-    let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}", env!("CARGO_PKG_VERSION"), error, training.noise);
+    // 5. Transmission, with the reflection fixed.
+    let t = Instant::now();
+    let mut transmission_report = None;
+    let mut texel_transmission = None;
+    if let Some(to) = &options.transmission {
+        let (t, r) = fit_texel_transmission(&skeleton, &measure, &pairs, &clusters, k, options, to, progress)?;
+        texel_transmission = Some(t);
+        transmission_report = Some(r);
+    }
+    stage("transmission", t);
+
+    let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}{}", env!("CARGO_PKG_VERSION"), error, training.noise, if texel_transmission.is_some() { ", BSDF" } else { "" });
     let level = match &texel_params {
         Some(p) => level0_per_texel(&geometry, p),
         None => level0(&geometry, &clusters, &params),
     };
     let mut model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
+    if let Some(t) = &texel_transmission {
+        model.levels[0].transmission = Some(t.iter().map(PackedTransmission::new).collect());
+    }
 
     // 5. Flyaways, with the surface fixed.
     let mut flyaway_report = None;
@@ -572,12 +621,85 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         flyaway_voxels: geometry.flyaways.len(),
         flyaways: flyaway_report,
         prefilter: prefilter_report,
+        transmission: transmission_report,
         stage_seconds,
         total_seconds: start.elapsed().as_secs_f64(),
         input_bytes: (texels * nz * 7 * 4) as u64,
         model_bytes,
     };
     Ok(Bake { model, report, geometry, training, clusters, fits, predictions })
+}
+
+/// The transmission stage: backlit training renderings of the masked surface, probed
+/// through `skeleton` (the texel the model shows along each ray, in its frame), a fit per
+/// cluster of `clusters` (K = `k`), a ridge refinement per texel where the bake refines
+/// per texel, and each texel's energy capped. Returns the per-texel terms and the report.
+#[allow(clippy::too_many_arguments)] // the stage's inputs: model, sheet, pairs, clusters and options
+fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs: &[Pair], clusters: &[u32], k: usize, options: &BakeOptions, to: &TransmissionFitOptions, progress: &dyn Progress) -> Result<(Vec<ClothTransmission>, TransmissionReport), BakeError> {
+    let texels = clusters.len();
+    let (nx, ny) = measure.texels();
+    let t = Instant::now();
+    let backlit = backlit_pairs(pairs);
+    let seed = mix64(options.seed ^ 0x7472_616e_736d);
+    let bar = begin_stage(progress, "backlit training renderings", backlit.len() as u64);
+    let training = render_training(measure, &backlit, options.spp, seed, &|| bar.advance(1))?;
+    bar.finish();
+    let render_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let frames: Vec<ClothFrame> = match &skeleton.levels[0].surface {
+        Surface::Clustered { texels, .. } => texels.iter().map(|t| t.frame()).collect(),
+        Surface::PerTexel(_) => return Err(BakeError::Cluster("the skeleton's level 0 must be clustered".into())),
+    };
+    let probe = ProbeOptions { rays: options.probe_rays, shadows: false, volumetric: false };
+    let all_texels: Vec<u32> = (0..texels as u32).collect();
+    let jitter = image_jitter(half_seeds(seed)[0]);
+    let bar = begin_stage(progress, "transmission: probing and fitting", backlit.len() as u64 + 1);
+    // (texel hit, target pixel, factors)
+    let mut samples: Vec<(u32, u32, TransGeo)> = Vec::new();
+    for (c, p) in backlit.iter().enumerate() {
+        let base = (c * texels) as u32;
+        samples.extend(probe_samples(skeleton, measure, p.wi, p.wo, &all_texels, &probe, &jitter, &|j| base + j).into_iter().map(|s| (s.hit, s.target, TransGeo::new(&frames[s.hit as usize], p.wi, p.wo))));
+        bar.advance(1);
+    }
+    let target_of = |target: u32| training.images[target as usize / texels].pixels[target as usize % texels];
+    let mut per_cluster: Vec<Vec<TransTarget>> = vec![Vec::new(); k];
+    for &(hit, target, geo) in &samples {
+        per_cluster[clusters[hit as usize] as usize].push(TransTarget { geo, radiance: target_of(target) });
+    }
+    let fits: Vec<TransmissionFit> = per_cluster.par_iter().map(|s| fit_transmission(s, to)).collect();
+    let predict_all = |of: &dyn Fn(usize) -> ClothTransmission| -> Vec<Image> {
+        let weight = 1.0 / options.probe_rays as f32;
+        let mut images: Vec<Image> = training.images.iter().map(|i| Image::new(i.width, i.height)).collect();
+        for &(hit, target, geo) in &samples {
+            images[target as usize / texels].pixels[target as usize % texels] += weight * predict_transmission(&of(hit as usize), &geo);
+        }
+        images
+    };
+    let cluster_error = image_errors(&predict_all(&|j| fits[clusters[j] as usize].transmission), &training.images, nx, ny).0;
+    let refined: Vec<ClothTransmission> = match options.per_texel_ridge {
+        Some(ridge) => {
+            let mut per_texel: Vec<Vec<TransTarget>> = vec![Vec::new(); texels];
+            for &(hit, target, geo) in &samples {
+                per_texel[hit as usize].push(TransTarget { geo, radiance: target_of(target) });
+            }
+            per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission(s, &fits[clusters[j] as usize].transmission, ridge)).collect()
+        }
+        None => (0..texels).map(|j| fits[clusters[j] as usize].transmission).collect(),
+    };
+    let capped: Vec<ClothTransmission> = refined.par_iter().zip(&frames).map(|(t, f)| cap_energy(t, f)).collect();
+    let capped_texels = capped.iter().zip(&refined).filter(|(a, b)| a != b).count();
+    let worst_albedo = capped.par_iter().zip(&frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
+    let predictions = predict_all(&|j| capped[j]);
+    let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
+    bar.finish();
+    let problems = fits
+        .iter()
+        .enumerate()
+        .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
+        .collect();
+    let pair_errors = predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect();
+    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
+    Ok((capped, report))
 }
 
 /// The model's image for each training pair: per pixel, the mean of its rays'

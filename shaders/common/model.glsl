@@ -76,8 +76,9 @@ layout(std430, set = 0, binding = 3) readonly buffer LobeBlock { uvec4 brdf_lobe
 layout(std430, set = 0, binding = 4) readonly buffer TexelBlock { uvec2 clustered_texels[]; };
 layout(std430, set = 0, binding = 5) readonly buffer HeadBlock { uint fly_heads[]; };
 layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes[]; };
-// PackedTransmission records of every BSDF level (format 1.3; one zero record when none).
-layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec4 transmissions[]; };
+// PackedTransmission records of every BSDF level, 24 bytes = 3 uvec2 each (format 1.3;
+// one zero record when none).
+layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec2 transmissions[]; };
 
 // i mod n in [0, n) for n > 0 (Rust's rem_euclid); GLSL's % is undefined for negative
 // operands, so only non-negative ones reach it.
@@ -105,13 +106,17 @@ uint model_reading() {
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
 }
 
-// A PackedTransmission record (runtime/src/hybrid/lobe.rs).
-ClothTransmission packed_transmission(uvec4 r) {
+// PackedTransmission record `index` (runtime/src/hybrid/lobe.rs).
+ClothTransmission packed_transmission(uint index) {
+    uvec2 a = transmissions[3u * index];
+    uvec2 b = transmissions[3u * index + 1u];
+    uvec2 c = transmissions[3u * index + 2u];
     ClothTransmission t;
-    t.kd = vec3(f16_value(r.x), f16_value(r.x >> 16), f16_value(r.y));
-    t.lobe.k = vec3(f16_value(r.y >> 16), f16_value(r.z), f16_value(r.z >> 16));
-    t.lobe.beta = f16_value(r.w);
-    t.lobe.gamma = f16_value(r.w >> 16);
+    t.kd = vec3(f16_value(a.x), f16_value(a.x >> 16), f16_value(a.y));
+    t.lobe.k = vec3(f16_value(a.y >> 16), f16_value(b.x), f16_value(b.x >> 16));
+    t.lobe.beta = f16_value(b.y);
+    t.lobe.gamma = f16_value(b.y >> 16);
+    t.tau = f16_value(c.x);
     return t;
 }
 

@@ -114,7 +114,7 @@ vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 
     if (r.trans == NO_NODE) {
         return vec3(0.0);
     }
-    ClothTransmission t = packed_transmission(transmissions[r.trans]);
+    ClothTransmission t = packed_transmission(r.trans);
     t.kd *= e.tint;
     t.lobe.k *= e.tint;
     t.lobe.beta *= e.roughness_scale;

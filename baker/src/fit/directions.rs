@@ -83,6 +83,13 @@ pub fn mirror(w: Vec3) -> Vec3 {
     Vec3::new(-w.x, -w.y, w.z)
 }
 
+/// The backlit configurations of a BSDF fit: each pair with its light mirrored through
+/// the tile plane (ω_i.z < 0, below the sheet; the view stays above). A specular pair
+/// becomes a straight-through pair (ω_o = −ω_i), the transmission lobe's peak.
+pub fn backlit_pairs(pairs: &[Pair]) -> Vec<Pair> {
+    pairs.iter().map(|p| Pair { wi: fabric_runtime::brdf::cloth_mirror_z(p.wi), ..*p }).collect()
+}
+
 /// A direction uniform in solid angle over the cap θ ≤ θ_max, from (u, v) ∈ [0, 1)².
 fn cap(u: f32, v: f32, cos_max: f32) -> Vec3 {
     let z = 1.0 - u * (1.0 - cos_max);

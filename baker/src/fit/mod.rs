@@ -2,7 +2,8 @@
 //! configurations ([`directions`]), training renderings and the model-side samples
 //! ([`samples`]), per-texel features ([`features`]), clustering ([`kmeans`]), the
 //! per-cluster fit ([`cluster_fit`]: Nelder–Mead over [`simplex`] with the linear
-//! parameters by [`nnls`]) and the flyaways' fit ([`flyaways`]). The pipeline that
+//! parameters by [`nnls`]), the flyaways' fit ([`flyaways`]) and, for a BSDF, the
+//! transmission term's ([`transmission`]). The pipeline that
 //! chains them is `crate::bake`.
 
 pub mod cluster_fit;
@@ -13,3 +14,4 @@ pub mod kmeans;
 pub mod nnls;
 pub mod samples;
 pub mod simplex;
+pub mod transmission;

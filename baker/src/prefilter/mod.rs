@@ -29,11 +29,13 @@ use serde::Serialize;
 use fabric_runtime::brdf::MAX_LOBES;
 use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
-use fabric_runtime::cpu::shading::texel_response;
-use fabric_runtime::hybrid::TexelBrdf;
+use fabric_runtime::brdf::{ClothTransmission, cloth_frame, cloth_mirror_z};
+use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
+use fabric_runtime::hybrid::{PackedTransmission, TexelBrdf, decode_frame, encode_frame};
 use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
 
+use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission};
 use crate::progress::{Progress, stage};
 use lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
 use pairs::{Pair, fit_pairs};
@@ -102,6 +104,10 @@ pub struct LevelReport {
     pub surface_bytes: u64,
     pub flyaway_nodes: usize,
     pub flyaway_bytes: u64,
+    /// A BSDF's transmission term: mean relative error of its fit to the footprint's
+    /// level-0 terms over the backlit pairs, and its bytes (None / 0: no transmission).
+    pub transmission_fit_error: Option<f64>,
+    pub transmission_bytes: u64,
     pub seconds: f64,
 }
 
@@ -112,13 +118,13 @@ pub struct PrefilterReport {
     pub tolerance: f32,
     pub levels: Vec<LevelReport>,
     pub seconds: f64,
-    /// Bytes of level 0 and of the coarse levels (surface and flyaways).
+    /// Bytes of level 0 and of the coarse levels (surface, flyaways, transmission).
     pub level0_bytes: u64,
     pub chain_bytes: u64,
 }
 
 fn level_bytes(l: &Level) -> u64 {
-    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size())
+    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size()) + l.transmission_bytes()
 }
 
 /// Level-0 texels under texel (i, j) of level ℓ, along one axis of `n` texels.
@@ -156,6 +162,11 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     let bar = stage(progress, "prefilter", texels);
     // Targets of the level below (None for level 0: evaluated where needed).
     let mut finer_targets: Option<Vec<TargetAcc>> = None;
+    // A BSDF: the transmission term is prefiltered too, on the pairs with the light
+    // mirrored below the sheet, against the plain mean of the footprint's level-0 terms.
+    let bsdf = model.levels[0].transmission.is_some();
+    let backlit: Vec<Pair> = pairs.iter().map(|&(wi, wo)| (cloth_mirror_z(wi), wo)).collect();
+    let mut finer_trans: Option<Vec<Vec3>> = None;
     let np = pairs.len();
     let tracer = HeightTracer::new(model, opts.periodic);
     let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
@@ -177,7 +188,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             }
             c
         };
-        let fits: Vec<(CoarseFit, Vec<TargetAcc>)> = (0..lw * lh)
+        let fits: Vec<(CoarseFit, Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>)> = (0..lw * lh)
             .into_par_iter()
             .map(|index| {
                 let (i, j) = (index % lw, index / lw);
@@ -205,8 +216,26 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                 }
                 let target: Vec<Vec3> = acc.iter().map(TargetAcc::value).collect();
                 let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal, target: &target }, &pairs, &settings);
+                let trans = bsdf.then(|| {
+                    let mut t_acc = vec![Vec3::ZERO; np];
+                    for &(ci, cj, n) in &kids {
+                        let share = n as f32 / total.max(1) as f32;
+                        match &finer_trans {
+                            Some(t) => t_acc.iter_mut().zip(&t[(cj * fw + ci) as usize * np..][..np]).for_each(|(a, v)| *a += share * *v),
+                            None => {
+                                let b = level0.texel_brdf(ci, cj);
+                                t_acc.iter_mut().zip(&backlit).for_each(|(a, &(wi, wo))| *a += share * texel_transmission_response(&b, wi, wo));
+                            }
+                        }
+                    }
+                    // In the coarse texel's lobe-0 frame, which the renderers use.
+                    let frame = fit.lobes.first().map_or(cloth_frame(Vec3::Z, Vec3::X), |(_, n, t)| decode_frame_of(*n, *t));
+                    let samples: Vec<TransTarget> = backlit.iter().zip(&t_acc).map(|(&(wi, wo), &radiance)| TransTarget { geo: TransGeo::new(&frame, wi, wo), radiance }).collect();
+                    let f = fit_transmission(&samples, &TransmissionFitOptions { max_evals: 120, restarts: 1, ..Default::default() });
+                    (cap_energy(&f.transmission, &frame), t_acc, f.relative_residual())
+                });
                 bar.advance(1);
-                (fit, acc)
+                (fit, acc, trans)
             })
             .collect();
         let mut table = BrdfTable::new();
@@ -215,9 +244,17 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let mut by_lobes = [0f64; MAX_LOBES];
         let mut lobes_total = 0usize;
         let mut lobes_max = 0usize;
-        for (fit, acc) in fits {
+        let mut trans_records = Vec::new();
+        let mut trans_targets = Vec::new();
+        let mut trans_error = 0f64;
+        for (fit, acc, trans) in fits {
             table.push_framed(fit.kd, fit.eta, fit.a, &fit.lobes);
             targets.extend(acc);
+            if let Some((t, t_acc, e)) = trans {
+                trans_records.push(PackedTransmission::new(&t));
+                trans_targets.extend(t_acc);
+                trans_error += e;
+            }
             errors.push(fit.error as f64);
             for (acc, e) in by_lobes.iter_mut().zip(fit.error_by_count) {
                 *acc += e as f64;
@@ -230,7 +267,8 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
         let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage).map_err(PrefilterError::Output)? } else { None };
-        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: None };
+        let transmission_fit_error = bsdf.then(|| trans_error / n);
+        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records) };
         report.levels.push(LevelReport {
             level,
             width: lw,
@@ -243,11 +281,14 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             surface_bytes: l.surface_bytes(),
             flyaway_nodes: l.flyaways.as_ref().map_or(0, |f| f.nodes.len()),
             flyaway_bytes: l.flyaways.as_ref().map_or(0, |f| f.byte_size()),
+            transmission_fit_error,
+            transmission_bytes: l.transmission_bytes(),
             seconds: t0.elapsed().as_secs_f64(),
         });
         report.chain_bytes += level_bytes(&l);
         out.levels.push(l);
         finer_targets = Some(targets);
+        finer_trans = bsdf.then_some(trans_targets);
     }
     drop(bar);
     let mut errors = vec![-1.0f32; count];
@@ -318,6 +359,13 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
         a.plain += lit * f;
         a.count += 1.0;
     }
+}
+
+/// The frame (n, t) as a renderer decodes it from the file (octahedral normal, tangent
+/// angle): the transmission term is fitted in the frame it will be evaluated in.
+fn decode_frame_of(n: Vec3, t: Vec3) -> fabric_runtime::brdf::ClothFrame {
+    let (code, angle) = encode_frame(n, t);
+    decode_frame(code, angle)
 }
 
 /// Step budget of the prefilter's visibility rays.

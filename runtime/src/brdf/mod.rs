@@ -370,13 +370,22 @@ pub fn cloth_response(p: &ClothParams, f: &ClothFrame, wi: Vec3, wo: Vec3, readi
     cloth_brdf(p, f, wi, wo, reading) * f.n.dot(wi).max(0.0)
 }
 
-/// The transmission term of a BSDF texel (format 1.3; DESIGN.md §5 "Transmission"):
-/// a diffuse part k_dt and one lobe about the transmitted direction, both linear RGB.
+/// Largest optical-depth parameter τ of a transmission term.
+pub const TAU_MAX: f32 = 16.0;
+/// Smallest |cos| in the transmission's attenuation (caps 1/μ at 20).
+pub const TRANSMISSION_MU_MIN: f32 = 0.05;
+
+/// The transmission term of a BSDF texel (format 1.3; runtime/HYBRID_FORMAT.md §6
+/// "Transmission"): a diffuse part k_dt and one lobe about the transmitted direction,
+/// both linear RGB, attenuated along the slant path with optical-depth parameter τ.
 /// A texel without one has all zeros (nothing comes through).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ClothTransmission {
     pub kd: Vec3,
     pub lobe: ClothLobe,
+    /// τ ∈ [0, TAU_MAX]: the attenuation exp(−τ·(1/μ_i + 1/μ_o − 2)), 1 at normal
+    /// incidence and view.
+    pub tau: f32,
 }
 
 impl ClothTransmission {
@@ -392,16 +401,28 @@ pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
     Vec3::new(w.x, w.y, -w.z)
 }
 
+/// The attenuation of light crossing the sheet between cosines μ_i, μ_o (to the tile's
+/// normal): exp(−τ·(1/μ_i + 1/μ_o − 2)), μ clamped to [TRANSMISSION_MU_MIN, 1], τ to
+/// [0, TAU_MAX]. A slab's direct transmission goes as exp(−τ₀/μ) each way; normalized
+/// to 1 at normal incidence so that k_dt and k_t keep their meaning. Symmetric.
+#[inline]
+pub fn cloth_transmission_attenuation(tau: f32, mu_i: f32, mu_o: f32) -> f32 {
+    let tau = tau.max(0.0).min(TAU_MAX);
+    let mi = mu_i.abs().max(TRANSMISSION_MU_MIN).min(1.0);
+    let mo = mu_o.abs().max(TRANSMISSION_MU_MIN).min(1.0);
+    (-tau * (1.0 / mi + 1.0 / mo - 2.0)).exp()
+}
+
 /// f_t(ω_i, ω_o) for directions on opposite sides of the tile plane (ω_i.z · ω_o.z < 0):
 /// ```text
-/// f_t = k_dt + k_t · G(θ_l* + θ_u; β_t) · P(φ_l* + φ_u; γ_t)
+/// f_t = (k_dt + k_t · G(θ_l* + θ_u; β_t) · P(φ_l* + φ_u; γ_t)) · A(τ; ω_i.z, ω_o.z)
 /// ```
 /// u is whichever of ω_i, ω_o lies above the plane, l* the other mirrored through it
 /// ([`cloth_mirror_z`]); angles in frame `f` (the texel's lobe-0 frame). The lobe is the
 /// reflection lobe's bounded shape (no Fresnel, no shadowing) seen from the mirrored
-/// side, so with n = ẑ it peaks at ω_o = −ω_i, the straight-through direction, and the
-/// value is symmetric in (ω_i, ω_o): reciprocal by construction. Directions on the same
-/// side give 0. RGB, finite, ≥ 0.
+/// side, so with n = ẑ it peaks at ω_o = −ω_i, the straight-through direction; A is
+/// [`cloth_transmission_attenuation`]. The value is symmetric in (ω_i, ω_o): reciprocal
+/// by construction. Directions on the same side give 0. RGB, finite, ≥ 0.
 #[inline]
 pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: Vec3) -> Vec3 {
     if !(wi.z * wo.z < 0.0) {
@@ -412,7 +433,7 @@ pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: V
     let al = cloth_angles(f, cloth_mirror_z(lower));
     let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)
+    (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * cloth_transmission_attenuation(t.tau, wi.z, wo.z)
 }
 
 /// Transmitted radiance per unit irradiance: f_t · |ω_i.z| (the tile's cosine, since the

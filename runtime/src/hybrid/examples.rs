@@ -234,3 +234,22 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
     let meta = BakeMetadata { note: format!("synthetic_model({n}, {seed})"), seed, ..example_meta(&tile, count, [n, n, 64]) };
     HybridModel { tile, height, levels, meta }
 }
+
+/// Gives every level of `model` a transmission term (a BSDF, format 1.3): `t` scaled
+/// per texel by 0.5–1.5 in a checker of `cells` × `cells` over the tile, so that the
+/// texels differ and a renderer that reads the wrong one shows it.
+pub fn add_transmission(model: &mut HybridModel, t: &crate::brdf::ClothTransmission, cells: u32) {
+    use crate::hybrid::PackedTransmission;
+    for l in model.levels.iter_mut() {
+        let (w, h) = (l.width, l.height);
+        let records = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
+                let s = if odd { 1.5 } else { 0.5 };
+                PackedTransmission::new(&crate::brdf::ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau })
+            })
+            .collect();
+        l.transmission = Some(records);
+    }
+}

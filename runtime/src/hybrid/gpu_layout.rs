@@ -245,7 +245,7 @@ impl GpuModel {
             ("clustered texels", bytes(&self.texels, 8)),
             ("flyaway heads", bytes(&self.fly_heads, 4)),
             ("flyaway nodes", bytes(&self.fly_nodes, 16)),
-            ("transmission records", bytes(&self.transmissions, 16)),
+            ("transmission records", bytes(&self.transmissions, 24)),
         ]
     }
 

@@ -7,7 +7,7 @@
 //! | [`BrdfHeader`]     | 16    | k_d (3×f16), η, a (f16), lobe count, first lobe       |
 //! | [`PackedLobe`]     | 16    | n (oct 2×snorm16), t (angle 16), k (3×f16), β, γ (f16)     |
 //! | [`ClusteredTexel`] | 8     | n (oct 2×snorm16), t (angle 16), cluster index (u16)       |
-//! | [`PackedTransmission`] | 16 | k_dt (3×f16), k_t (3×f16), β_t, γ_t (f16) (format 1.3)     |
+//! | [`PackedTransmission`] | 24 | k_dt (3×f16), k_t (3×f16), β_t, γ_t, τ (f16), 3 reserved (format 1.3) |
 //!
 //! A table is a header array plus a lobe array; header h uses lobes
 //! `lobe_offset .. lobe_offset + lobe_count`. In cluster and flyaway tables the lobes'
@@ -18,7 +18,7 @@ use glam::Vec3;
 
 use super::error::{ModelError, TableKind};
 use super::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
-use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ClothTransmission, ETA_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
+use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ClothTransmission, ETA_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
 /// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
 #[repr(C)]
@@ -65,7 +65,8 @@ pub struct ClusteredTexel {
 }
 
 /// A texel's transmission term (format 1.3): k_dt, and the lobe about the transmitted
-/// direction, in the texel's lobe-0 frame ([`crate::brdf::cloth_transmission`]). 16 bytes.
+/// direction, in the texel's lobe-0 frame, and its attenuation τ
+/// ([`crate::brdf::cloth_transmission`]). 24 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct PackedTransmission {
@@ -77,16 +78,20 @@ pub struct PackedTransmission {
     pub beta: u16,
     /// γ_t (radians), f16 bits; 0 = the φ falloff is off.
     pub gamma: u16,
+    /// τ, f16 bits.
+    pub tau: u16,
+    /// Must be 0.
+    pub reserved: [u16; 3],
 }
 
 impl PackedTransmission {
     pub fn new(t: &ClothTransmission) -> PackedTransmission {
-        PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma) }
+        PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma), tau: f16_bits(t.tau), reserved: [0; 3] }
     }
 
     pub fn decode(&self) -> ClothTransmission {
         let v = |b: [u16; 3]| Vec3::new(f16_value(b[0]), f16_value(b[1]), f16_value(b[2]));
-        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) } }
+        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau) }
     }
 
     /// Checks one record (texel `texel` of level `level`): finite k's ≥ 0, β and γ in
@@ -106,11 +111,17 @@ impl PackedTransmission {
         if !(gamma == 0.0 || (gamma >= GAMMA_MIN * 0.999 && gamma <= GAMMA_MAX)) {
             return Err(bad("gamma_t", gamma, "0 (off) or [1e-3, 1e4]"));
         }
+        if !(t.tau >= 0.0 && t.tau <= TAU_MAX) {
+            return Err(bad("tau", t.tau, "[0, 16]"));
+        }
+        if self.reserved != [0; 3] {
+            return Err(bad("reserved", f32::from(self.reserved[0] | self.reserved[1] | self.reserved[2]), "0"));
+        }
         Ok(())
     }
 }
 
-const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 16);
+const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 24);
 const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
 const _: () = assert!(core::mem::size_of::<PackedLobe>() == 16);
 const _: () = assert!(core::mem::size_of::<ClusteredTexel>() == 8);

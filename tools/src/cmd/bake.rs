@@ -143,6 +143,15 @@ pub struct BakeArgs {
     /// Write level 0 only (no mip chain).
     #[arg(long)]
     pub no_prefilter: bool,
+    /// Fit a full BSDF: also the light that comes through the cloth from behind
+    /// (backlit training renderings, a transmission term per texel; format 1.3). The
+    /// held-out check then adds backlit views.
+    #[arg(long)]
+    pub bsdf: bool,
+    /// Largest optical-depth parameter τ of the transmission's slant-path attenuation
+    /// (0 turns the attenuation off; measured knob).
+    #[arg(long, default_value_t = 4.0)]
+    pub tau_max: f32,
     #[command(flatten)]
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
@@ -201,6 +210,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
         },
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
+    if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
+        bail!("--tau-max {}: must be in [0, {}]", args.tau_max, fabric_runtime::brdf::TAU_MAX);
+    }
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -249,6 +262,23 @@ pub fn run(args: BakeArgs) -> Result<()> {
             f.problem.as_ref().map(|p| format!(" ({p})")).unwrap_or_default()
         );
     }
+    if let Some(t) = &r.transmission {
+        println!(
+            "transmission: {} backlit pairs, training error {:.2}% per texel, {:.2}% over 4x4 blocks (clusters alone {:.2}%; noise floor {:.2}%); worst albedo {:.3}, {} texels capped; {:.1} s rendering + {:.1} s fitting",
+            t.pairs.len(),
+            100.0 * t.error,
+            100.0 * t.block_error,
+            100.0 * t.cluster_error,
+            100.0 * t.noise_floor,
+            t.worst_albedo,
+            t.capped_texels,
+            t.render_seconds,
+            t.fit_seconds
+        );
+        for p in &t.problems {
+            println!("warning: transmission of cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
+        }
+    }
     if let Some(p) = &r.prefilter {
         crate::cmd::prefilter::print_report(p);
     }
@@ -277,7 +307,13 @@ pub fn run(args: BakeArgs) -> Result<()> {
     let mut views: Vec<ViewError> = Vec::new();
     if args.held_out > 0 {
         let medium = reference_medium(&volume, options.lookup)?;
-        let pairs = held_out_pairs(&r.pairs, args.held_out, 60.0, 5.0, options.seed ^ 0x5eed);
+        let mut pairs = held_out_pairs(&r.pairs, args.held_out, 60.0, 5.0, options.seed ^ 0x5eed);
+        // A BSDF is also checked backlit: as many views again, with the light below.
+        let backlit = r.transmission.is_some();
+        if backlit {
+            let more = held_out_pairs(&r.pairs, args.held_out, 60.0, 5.0, options.seed ^ 0xb4c7);
+            pairs.extend(fabric_baker::fit::directions::backlit_pairs(&more));
+        }
         let bar = stage_bar("held-out views", pairs.len() as u64);
         for (v, pair) in pairs.iter().enumerate() {
             // Every fourth view is a perspective point-light view.
@@ -291,8 +327,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
         println!("held-out views (model vs reference, relative RMSE):");
         for (v, e) in views.iter().enumerate() {
             println!(
-                "  view {v} {:?} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%)",
+                "  view {v} {:?}{} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%)",
                 e.kind,
+                if e.pair.wi.z < 0.0 { " backlit" } else { "" },
                 e.pair.wi.z.acos().to_degrees(),
                 e.pair.wo.z.acos().to_degrees(),
                 100.0 * e.block_error,
@@ -302,9 +339,15 @@ pub fn run(args: BakeArgs) -> Result<()> {
                 100.0 * e.reference_noise
             );
         }
-        let worst = views.iter().map(|e| e.block_error).fold(0.0, f64::max);
-        let mean = views.iter().map(|e| e.block_error).sum::<f64>() / views.len().max(1) as f64;
-        println!("held-out error over 4x4 blocks: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+        for (lit, name) in [(false, "held-out error over 4x4 blocks"), (true, "backlit held-out error over 4x4 blocks")] {
+            let of: Vec<f64> = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).map(|e| e.block_error).collect();
+            if of.is_empty() {
+                continue;
+            }
+            let worst = of.iter().copied().fold(0.0, f64::max);
+            let mean = of.iter().sum::<f64>() / of.len() as f64;
+            println!("{name}: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+        }
     }
 
     let report_path = args.report.clone().unwrap_or_else(|| args.out.with_extension("json"));
