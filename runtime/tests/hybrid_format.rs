@@ -11,6 +11,15 @@ fn sample() -> HybridModel {
     m
 }
 
+/// The sample with a transmission term on every level (a BSDF, format 1.3).
+fn bsdf_sample() -> HybridModel {
+    use fabric_runtime::brdf::{ClothLobe, ClothTransmission};
+    let mut m = sample();
+    examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: glam::Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5 }, 2);
+    m.validate().expect("the BSDF sample is valid");
+    m
+}
+
 fn sample_bytes() -> Vec<u8> {
     format::to_bytes(&sample()).unwrap()
 }
@@ -113,6 +122,45 @@ fn round_trip_is_exact_and_deterministic() {
     format::write_file(&m, &path).unwrap();
     assert_eq!(format::read_file(&path).unwrap(), m);
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_bsdf_round_trips_and_a_reader_that_skips_its_transmission_reads_the_brdf() {
+    let m = bsdf_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    assert!(m.has_transmission() && m.levels.iter().all(|l| l.transmission.as_ref().is_some_and(|t| t.len() == (l.width * l.height) as usize)));
+    // The section is optional: a reader that does not know its kind (a 1.2 reader)
+    // skips it and gets the reflection alone.
+    let mut parts = Parts::of(&bytes);
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Transmission as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4000;
+    }
+    let brdf = format::read(&parts.assemble()).unwrap();
+    assert!(!brdf.has_transmission());
+    assert_eq!(brdf.levels[0].surface, m.levels[0].surface);
+}
+
+#[test]
+fn transmission_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("NaN k_dt", |p| p.find(SectionKind::Transmission, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionParam { field: "k_dt.r", .. }))),
+        ("negative k_t", |p| p.find(SectionKind::Transmission, 1)[8..10].copy_from_slice(&0xbc00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionParam { field: "k_t.g", .. }))),
+        ("β_t = 0 with k_t > 0", |p| p.find(SectionKind::Transmission, 0)[12..14].copy_from_slice(&0u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionParam { field: "beta_t", .. }))),
+        ("τ = 20", |p| p.find(SectionKind::Transmission, 2)[16..18].copy_from_slice(&0x4d00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionParam { field: "tau", .. }))),
+        ("reserved set", |p| p.find(SectionKind::Transmission, 0)[20] = 1, |e| matches!(e, FormatError::Invalid(ModelError::TransmissionParam { field: "reserved", .. }))),
+        ("one record short", |p| { let t = p.find(SectionKind::Transmission, 1); t.truncate(t.len() - 24) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "transmission records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::Transmission, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "TRANSMISSION")),
+        ("for a level that does not exist", |p| p.entry(SectionKind::Transmission, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+    ];
+    for (name, edit, expect) in cases {
+        let mut parts = Parts::of(&format::to_bytes(&bsdf_sample()).unwrap());
+        edit(&mut parts);
+        let e = err(&parts.assemble());
+        assert!(expect(&e), "{name}: unexpected error {e:?}");
+    }
 }
 
 #[test]
@@ -338,7 +386,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small)] {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample())] {
         let bytes = format::to_bytes(&model).unwrap();
         let path = dir.join(name);
         if std::env::var_os("FABRIC_BLESS").is_some() {

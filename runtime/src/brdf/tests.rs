@@ -244,3 +244,54 @@ fn twin_arctangent_is_accurate_everywhere() {
     assert!((cloth_atan2(1.0, 0.0) - std::f32::consts::FRAC_PI_2).abs() < 1e-7);
     assert!((cloth_atan2(0.0, -1.0) - std::f32::consts::PI).abs() < 1e-7);
 }
+
+fn transmission() -> ClothTransmission {
+    ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.25, gamma: 1.0 }, tau: 0.7 }
+}
+
+#[test]
+fn transmission_is_reciprocal_and_peaks_straight_through() {
+    let mut rng = super::twin::SplitMix64(11);
+    let t = transmission();
+    let unit = |rng: &mut super::twin::SplitMix64, lo: f32, hi: f32| {
+        let z = rng.range(lo, hi);
+        let p = rng.range(0.0, std::f32::consts::TAU);
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(s * p.cos(), s * p.sin(), z)
+    };
+    for _ in 0..2000 {
+        let f = cloth_frame(Vec3::new(rng.range(-0.5, 0.5), rng.range(-0.5, 0.5), 1.0), Vec3::new(1.0, rng.range(-1.0, 1.0), 0.0));
+        let (below, above) = (unit(&mut rng, -1.0, -0.02), unit(&mut rng, 0.02, 1.0));
+        let a = cloth_transmission(&t, &f, below, above);
+        let b = cloth_transmission(&t, &f, above, below);
+        assert!(a.is_finite() && a.min_element() >= 0.0);
+        assert!((a - b).abs().max_element() <= 1e-6 * a.max_element().max(1e-6), "not reciprocal: {a} vs {b}");
+        // Same side: nothing through.
+        assert_eq!(cloth_transmission(&t, &f, above, above), Vec3::ZERO);
+        assert_eq!(cloth_transmission(&t, &f, below, -above), Vec3::ZERO);
+    }
+    // With n = z, the lobe peaks at ω_o = −ω_i: straight through beats every tilt of it.
+    let f = cloth_frame(Vec3::Z, Vec3::X);
+    let t0 = ClothTransmission { tau: 0.0, ..t };
+    let wi = Vec3::new(0.3, 0.2, -0.9).normalize();
+    let peak = cloth_transmission(&t0, &f, wi, -wi).x;
+    for k in 0..16 {
+        let a = k as f32 * std::f32::consts::TAU / 16.0;
+        let wo = (-wi + 0.15 * Vec3::new(a.cos(), a.sin(), 0.0)).normalize();
+        assert!(cloth_transmission(&t0, &f, wi, wo).x < peak);
+    }
+    // The attenuation: 1 at normal incidence and view, falling with the slant, and
+    // exp(−τ·(1/μ − 1)) with one side normal.
+    assert_eq!(cloth_transmission_attenuation(0.7, -1.0, 1.0), 1.0);
+    let mu = 0.5f32;
+    assert!((cloth_transmission_attenuation(0.7, -mu, 1.0) - (-0.7f32 * (1.0 / mu - 1.0)).exp()).abs() < 1e-6);
+    assert!(cloth_transmission_attenuation(0.7, -0.2, 0.3) < cloth_transmission_attenuation(0.7, -0.5, 0.3));
+    // Extreme inputs stay finite (grazing, τ out of range, NaN τ absorbed).
+    for tau in [-1.0, 0.0, 1e9, f32::NAN] {
+        let v = cloth_transmission(&ClothTransmission { tau, ..t }, &f, Vec3::new(1.0, 0.0, -1e-7).normalize(), Vec3::new(0.0, 1.0, 1e-7).normalize());
+        assert!(v.is_finite() && v.min_element() >= 0.0, "τ {tau}: {v}");
+    }
+    // The response carries the tile's cosine |ω_i.z|.
+    let r = cloth_transmission_response(&t, &f, wi, -wi);
+    assert!((r - cloth_transmission(&t, &f, wi, -wi) * 0.9f32.min(-wi.z).max(-wi.z)).abs().max_element() < 1e-6);
+}
