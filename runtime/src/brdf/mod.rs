@@ -395,12 +395,6 @@ impl ClothTransmission {
     }
 }
 
-/// `w` mirrored through the tile plane (z ↦ −z).
-#[inline]
-pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
-    Vec3::new(w.x, w.y, -w.z)
-}
-
 /// The attenuation of light crossing the sheet between cosines μ_i, μ_o (to the tile's
 /// normal): exp(−τ·(1/μ_i + 1/μ_o − 2)), μ clamped to [TRANSMISSION_MU_MIN, 1], τ to
 /// [0, TAU_MAX]. A slab's direct transmission goes as exp(−τ₀/μ) each way; normalized
@@ -411,6 +405,12 @@ pub fn cloth_transmission_attenuation(tau: f32, mu_i: f32, mu_o: f32) -> f32 {
     let mi = mu_i.abs().max(TRANSMISSION_MU_MIN).min(1.0);
     let mo = mu_o.abs().max(TRANSMISSION_MU_MIN).min(1.0);
     (-tau * (1.0 / mi + 1.0 / mo - 2.0)).exp()
+}
+
+/// `w` mirrored through the tile plane (z ↦ −z).
+#[inline]
+pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
+    Vec3::new(w.x, w.y, -w.z)
 }
 
 /// f_t(ω_i, ω_o) for directions on opposite sides of the tile plane (ω_i.z · ω_o.z < 0):

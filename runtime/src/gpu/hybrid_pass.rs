@@ -181,7 +181,8 @@ impl HybridPass {
         let layout = GpuModel::new(model, periodic).map_err(CpuRenderError::Model)?;
         let mut buffers = Vec::new();
         let mut bytes = 0;
-        for (name, data) in layout.arrays() {
+        // Bindings 0..=6, then 12 (buffers[7]).
+        for (name, data) in layout.arrays().into_iter().chain([layout.transmission_array()]) {
             bytes += data.len() as u64;
             buffers.push(Buffer::with_data(&self.device, name, &data, vk::BufferUsageFlags::STORAGE_BUFFER)?);
         }

@@ -226,17 +226,9 @@ impl GpuModel {
         Ok(out)
     }
 
-    /// The arrays as (name, bytes), in binding order 0..=6 and then 12 (the
-    /// transmission records). Empty arrays are one zero element long (Vulkan buffers
-    /// cannot be empty; nothing indexes them then).
-    pub fn arrays(&self) -> [(&'static str, Vec<u8>); 8] {
-        fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
-            let mut b = bytemuck::cast_slice(v).to_vec();
-            if b.is_empty() {
-                b.resize(min, 0);
-            }
-            b
-        }
+    /// The arrays as (name, bytes), in binding order 0..=6. Empty arrays are one zero
+    /// element long (Vulkan buffers cannot be empty; nothing indexes them then).
+    pub fn arrays(&self) -> [(&'static str, Vec<u8>); 7] {
         [
             ("model header", bytemuck::bytes_of(&self.header).to_vec()),
             ("model floats", bytes(&self.floats, 4)),
@@ -245,14 +237,28 @@ impl GpuModel {
             ("clustered texels", bytes(&self.texels, 8)),
             ("flyaway heads", bytes(&self.fly_heads, 4)),
             ("flyaway nodes", bytes(&self.fly_nodes, 16)),
-            ("transmission records", bytes(&self.transmissions, 24)),
         ]
+    }
+
+    /// Binding 12: the transmission records of every BSDF level (one zero record when
+    /// the model has none).
+    pub fn transmission_array(&self) -> (&'static str, Vec<u8>) {
+        ("transmission records", bytes(&self.transmissions, 24))
     }
 
     /// Total bytes uploaded.
     pub fn byte_size(&self) -> u64 {
-        self.arrays().iter().map(|(_, b)| b.len() as u64).sum()
+        self.arrays().iter().map(|(_, b)| b.len() as u64).sum::<u64>() + self.transmission_array().1.len() as u64
     }
+}
+
+/// `v` as bytes, at least `min` of them (zeros: Vulkan buffers cannot be empty).
+fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
+    let mut b = bytemuck::cast_slice(v).to_vec();
+    if b.is_empty() {
+        b.resize(min, 0);
+    }
+    b
 }
 
 /// Most lights one frame is drawn with.

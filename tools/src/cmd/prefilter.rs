@@ -121,6 +121,10 @@ pub fn print_report(r: &PrefilterReport) {
             l.seconds
         );
     }
+    let trans: Vec<String> = r.levels.iter().filter_map(|l| l.transmission_fit_error.map(|e| format!("{} {:.2}%", l.level, 100.0 * e))).collect();
+    if !trans.is_empty() {
+        println!("  transmission (BSDF), fit error per level: {}; 24 bytes per texel", trans.join(", "));
+    }
     let share = if r.level0_bytes > 0 { 100.0 * r.chain_bytes as f64 / r.level0_bytes as f64 } else { 0.0 };
     println!("  coarse levels {} bytes = {share:.1}% of level 0's {} bytes; {:.1} s", r.chain_bytes, r.level0_bytes, r.seconds);
 }
