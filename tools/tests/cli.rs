@@ -201,8 +201,9 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
+        (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
         (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
         (&["bake", "/nonexistent/fabric", "--k-min", "8", "--k-max", "4"], "k_min"),
         (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
@@ -356,4 +357,29 @@ fn hybrid_models_render_under_an_environment_map() {
     let (ok, text, out) = run(&["--mesh", "sphere", "--uv-scale", "4,2"], "env-mesh.exr");
     assert!(ok && text.contains("environment map"), "{text}");
     assert!(fabric_runtime::image::Image::read(&out, 1.0).unwrap().mean() > 1e-3);
+}
+
+/// A BSDF model lit from behind on the GPU: the frame says it shades the transmission
+/// and light comes through; the same scene through the CPU backend agrees.
+#[test]
+fn render_shades_a_light_behind_a_bsdf() {
+    use fabric_runtime::brdf::{ClothLobe, ClothTransmission};
+    let mut m = fabric_runtime::hybrid::examples::synthetic_model(32, 5);
+    fabric_runtime::hybrid::examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::splat(0.05), lobe: ClothLobe { k: glam::Vec3::splat(0.2), beta: 0.4, gamma: 1.5 }, tau: 0.5 }, 4);
+    let model = tmp("bsdf.hyb");
+    fabric_runtime::hybrid::format::write_file(&m, &model).unwrap();
+    let mut images = Vec::new();
+    for backend in ["gpu", "cpu"] {
+        let out = tmp(&format!("backlit-{backend}.exr"));
+        let o = fabric().arg("render").arg(&model).args(["--backend", backend, "--light-dir=0.2,0.3,-1", "--periodic", "--size", "48x32", "--out"]).arg(&out).output().unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{backend}: {stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+        if backend == "gpu" {
+            assert!(stdout.contains("transmission (a light behind the cloth)"), "{stdout}");
+        }
+        images.push(fabric_runtime::image::Image::read(&out, 1.0).unwrap());
+    }
+    assert!(images[0].mean() > 0.0, "light comes through");
+    let rmse = fabric_runtime::metrics::relative_rmse(&images[0], &images[1]).unwrap();
+    assert!(rmse < 1e-3, "GPU vs CPU {rmse}");
 }
