@@ -642,7 +642,8 @@ fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs:
     let backlit = backlit_pairs(pairs);
     let seed = mix64(options.seed ^ 0x7472_616e_736d);
     let bar = begin_stage(progress, "backlit training renderings", backlit.len() as u64);
-    let training = render_training(measure, &backlit, options.spp, seed, &|| bar.advance(1))?;
+    let spp = if to.spp > 0 { to.spp } else { options.spp };
+    let training = render_training(measure, &backlit, spp, seed, &|| bar.advance(1))?;
     bar.finish();
     let render_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();

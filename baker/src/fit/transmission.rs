@@ -79,11 +79,13 @@ pub struct TransmissionFitOptions {
     pub restarts: usize,
     /// Samples used by the search (a stride); the final solve uses all.
     pub search_samples: usize,
+    /// Samples per texel of the backlit training renderings (0: the bake's own spp).
+    pub spp: u32,
 }
 
 impl Default for TransmissionFitOptions {
     fn default() -> Self {
-        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000 }
+        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0 }
     }
 }
 

@@ -119,6 +119,24 @@ impl PrefilteredEnv {
         PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, irradiance }
     }
 
+    /// The same environment turned to `rotate_deg` about +Z, as if it had been placed
+    /// there (the window's live rotation): lookups go through the map's placement, so the
+    /// chain and the irradiance map are kept, and the sources taken out as lights turn
+    /// with it. Nothing is prefiltered again.
+    pub fn rotated(&self, rotate_deg: f32) -> Result<PrefilteredEnv, EnvMapError> {
+        let map = self.map.rotated(rotate_deg)?;
+        let turn = glam::Quat::from_rotation_z((rotate_deg - self.map.rotate_deg()).to_radians());
+        let lights = self
+            .lights
+            .iter()
+            .map(|l| match *l {
+                Light::Directional { dir_to_light, irradiance } => Light::directional(turn * dir_to_light, irradiance),
+                other => other,
+            })
+            .collect();
+        Ok(PrefilteredEnv { map, lights, sigma0: self.sigma0, levels: self.levels.clone(), irradiance: self.irradiance.clone() })
+    }
+
     /// Widest σ the chain holds.
     pub fn sigma_max(&self) -> f32 {
         self.sigma0 * (1u32 << (self.levels.len() - 1)) as f32
@@ -267,6 +285,36 @@ mod tests {
             assert!((e - Vec3::splat(0.7 * PI)).abs().max_element() < 0.01 * 0.7 * PI, "{e}");
             assert!((env.blurred(n, 0.3) - Vec3::splat(0.7)).abs().max_element() < 1e-5);
         }
+    }
+
+    #[test]
+    fn a_rotated_environment_is_the_one_placed_there() {
+        // Turning a prefiltered sky to 70° gives what prefiltering it placed at 70° gives:
+        // the same lookups everywhere and the same extracted sun, with nothing rebuilt.
+        let sky = Sky::default();
+        let options = crate::scene::ExtractOptions::default();
+        let at = |deg: f32| PrefilteredEnv::with_lights(&sky.env_map(EnvMapOptions { scale: 1.0, rotate_deg: deg }).unwrap(), options).unwrap();
+        let (turned, placed) = (at(10.0).rotated(70.0).unwrap(), at(70.0));
+        assert_eq!(turned.lights.len(), placed.lights.len());
+        assert!(!placed.lights.is_empty(), "the sky's sun is taken out");
+        for (a, b) in turned.lights.iter().zip(&placed.lights) {
+            match (a, b) {
+                (Light::Directional { dir_to_light: da, irradiance: ea }, Light::Directional { dir_to_light: db, irradiance: eb }) => {
+                    assert!((*da - *db).length() < 1e-5 && (*ea - *eb).abs().max_element() < 1e-5 * eb.max_element(), "{a:?} vs {b:?}");
+                }
+                _ => panic!("the sources are directional lights"),
+            }
+        }
+        let mut rng = crate::brdf::twin::SplitMix64(3);
+        for _ in 0..200 {
+            let w = rng.unit_vector();
+            for sigma in [0.0, 0.1, 0.5] {
+                let (a, b) = (turned.blurred(w, sigma), placed.blurred(w, sigma));
+                assert!((a - b).abs().max_element() <= 1e-5 * b.max_element().max(1e-3), "{w} σ {sigma}: {a} vs {b}");
+            }
+            assert!((turned.irradiance(w) - placed.irradiance(w)).abs().max_element() <= 1e-5 * placed.irradiance(w).max_element().max(1e-3));
+        }
+        assert!(at(0.0).rotated(f32::NAN).is_err());
     }
 
     #[test]

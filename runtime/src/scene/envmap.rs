@@ -176,6 +176,15 @@ impl EnvMap {
         self.rotate.to_degrees()
     }
 
+    /// The same texels turned to `rotate_deg` about +Z (finite degrees): its sampling
+    /// tables are the texels' own, so they stay.
+    pub fn rotated(&self, rotate_deg: f32) -> Result<EnvMap, EnvMapError> {
+        if !rotate_deg.is_finite() {
+            return Err(EnvMapError::BadRotation(rotate_deg));
+        }
+        Ok(EnvMap { rotate: rotate_deg.to_radians(), ..self.clone() })
+    }
+
     /// The same placement with other (already scaled) texels, e.g. a map with its sun
     /// taken out.
     pub fn with_texels(&self, texels: Vec<Vec3>) -> Result<EnvMap, EnvMapError> {

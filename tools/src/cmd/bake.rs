@@ -152,6 +152,9 @@ pub struct BakeArgs {
     /// (0 turns the attenuation off; measured knob).
     #[arg(long, default_value_t = 4.0)]
     pub tau_max: f32,
+    /// Samples per texel of the backlit training renderings [default: --spp].
+    #[arg(long)]
+    pub bsdf_spp: Option<u32>,
     #[command(flatten)]
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
@@ -213,7 +216,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
         bail!("--tau-max {}: must be in [0, {}]", args.tau_max, fabric_runtime::brdf::TAU_MAX);
     }
-    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, ..Default::default() });
+    if args.bsdf_spp.is_some_and(|s| s < 2) {
+        bail!("--bsdf-spp {}: need at least 2 (two halves)", args.bsdf_spp.unwrap_or(0));
+    }
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {

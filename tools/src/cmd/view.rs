@@ -174,7 +174,7 @@ impl Viewer {
                 if e.mask.is_some() { " (masked)" } else { "" },
                 if self.options.flyaways { "on" } else { "off" },
                 bias
-            )
+            ) + &self.options.env.as_ref().map(|e| format!(", environment turned {:.0}°", e.prefiltered.map.rotate_deg())).unwrap_or_default()
         } else {
             String::new()
         };
@@ -203,6 +203,15 @@ impl Viewer {
                 self.tint = 0;
             }
             "f" => self.options.flyaways = !self.options.flyaways,
+            // Turn the environment (and the sources taken out of it) about +Z, live.
+            "e" | "E" => {
+                let Some(env) = self.options.env.as_mut() else { return false };
+                let step = if key == "e" { 15.0 } else { -15.0 };
+                match env.prefiltered.rotated(env.prefiltered.map.rotate_deg() + step) {
+                    Ok(p) => env.prefiltered = Arc::new(p),
+                    Err(e) => eprintln!("cannot turn the environment: {e}"),
+                }
+            }
             "b" | "v" => {
                 let step = if key == "b" { 0.5 } else { -0.5 };
                 self.options.level = match self.options.level {
