@@ -17,6 +17,7 @@
 layout(std430, set = 0, binding = 11) readonly buffer EnvBlock { vec4 env_texels[]; };
 
 #define ENV_NODES 16u
+#define ENV_LOOKUPS 4u
 #define ENV_PI 3.14159265358979
 #define ENV_TAU 6.28318530717959
 
@@ -137,7 +138,38 @@ void env_theta_cells(float theta_c, float beta_eff, uint k_theta, ClothAngles ao
     }
 }
 
-// One lobe's SG mixture, each SG read from the prefiltered map (lobe_env_nodes).
+// SGs merged into one lookup (EnvGroup): summed weight, mean axis and sigma^2 weighted
+// by the weights' RGB mean, plus their spread 1 - |sum w a|^2 / (sum w)^2.
+struct EnvGroup {
+    vec3 weight;
+    vec3 axis;
+    float lum;
+    float sigma2;
+};
+
+void env_group_add(inout EnvGroup g, vec3 axis, vec3 weight, float sigma) {
+    float l = (weight.x + weight.y + weight.z) * (1.0 / 3.0);
+    g.weight += weight;
+    g.axis += axis * l;
+    g.lum += l;
+    g.sigma2 += l * sigma * sigma;
+}
+
+// The group's lookup; the group emptied.
+vec3 env_group_flush(inout EnvGroup g) {
+    vec3 r = vec3(0.0);
+    if (g.lum > 0.0) {
+        float len2 = dot(g.axis, g.axis);
+        float spread = max(1.0 - len2 / (g.lum * g.lum), 0.0);
+        float sigma = sqrt(g.sigma2 / g.lum + spread);
+        r = g.weight * env_blurred(g.axis * (1.0 / sqrt(max(len2, 1e-30))), sigma);
+    }
+    g = EnvGroup(vec3(0.0), vec3(0.0), 0.0, 0.0);
+    return r;
+}
+
+// One lobe's SG mixture, its SGs read from the prefiltered map ENV_LOOKUPS groups at a
+// time (lobe_env_nodes, EnvGroup).
 vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
     if (max(max(k.x, k.y), k.z) <= 0.0) {
@@ -163,6 +195,9 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
     uint k_theta = uint(clamp(round(sqrt(float(ENV_NODES) * theta_ext / phi_arc)), 1.0, 4.0));
     uint k_phi = max(ENV_NODES / k_theta, 1u);
     float d_phi = (phi_hi - phi_lo) / float(k_phi);
+    uint per_group = (k_theta * k_phi + ENV_LOOKUPS - 1u) / ENV_LOOKUPS;
+    uint emitted = 0u;
+    EnvGroup group = EnvGroup(vec3(0.0), vec3(0.0), 0.0, 0.0);
     bool bounded = reading == CLOTH_READING_BOUNDED;
     // The bounded reading's theta cells are the same in every phi column: computed once.
     ThetaCell cells[4];
@@ -198,9 +233,14 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
                 continue;
             }
             float sigma = max(cell.sigma, 0.4 * d_phi * cell.c);
-            sum += weight * env_blurred(wi, sigma);
+            env_group_add(group, wi, weight, sigma);
+            emitted += 1u;
+            if (emitted % per_group == 0u) {
+                sum += env_group_flush(group);
+            }
         }
     }
+    sum += env_group_flush(group);
     return sum;
 }
 

@@ -1,6 +1,7 @@
 //! Environment lighting of a hit (the CPU twin of `env_shading.glsl`): each lobe as a
-//! small mixture of spherical Gaussians, each SG one lookup in the prefiltered
-//! environment (paper §7.2, "Extensions"; runtime/HYBRID_FORMAT.md §6).
+//! small mixture of spherical Gaussians read from the prefiltered environment, the SGs
+//! merged into at most [`ENV_LOOKUPS`] lookups per lobe ([`EnvGroup`]) (paper §7.2,
+//! "Extensions"; runtime/HYBRID_FORMAT.md §6).
 //!
 //! # The lobe's SG mixture
 //! In its frame (n, t) a lobe is, as a function of ω_i at fixed ω_o (brdf/mod.rs),
@@ -40,6 +41,12 @@ use crate::scene::{EnvMap, PrefilteredEnv};
 
 /// Most SGs per lobe.
 pub const ENV_NODES: usize = 16;
+/// Most lookups of the prefiltered map per lobe: the mixture's SGs, in band order
+/// (neighbours), are merged ⌈nodes / ENV_LOOKUPS⌉ at a time into one lookup
+/// ([`EnvGroup`]). The SGs' weights are exact whatever the count (a constant map is
+/// integrated as well as with one lookup per SG); what fewer lookups give up is detail
+/// of the map within a group, which the widened blur averages.
+pub const ENV_LOOKUPS: usize = 4;
 
 /// erf(x), Abramowitz & Stegun 7.1.26 (|error| ≤ 1.5e-7), the same arithmetic in GLSL.
 #[inline]
@@ -59,9 +66,47 @@ pub struct EnvNode {
     pub sigma: f32,
 }
 
-/// The SG mixture of one lobe (module docs), passed node by node to `emit`.
+/// SGs merged into one lookup: their summed weight read at their mean axis (weighted by
+/// the weights' mean over RGB), blurred by their mean σ² plus their spread about that
+/// axis (the mean squared chord, 1 − |Σ w a|²/(Σ w)²).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EnvGroup {
+    pub weight: Vec3,
+    pub axis: Vec3,
+    pub lum: f32,
+    pub sigma2: f32,
+}
+
+impl EnvGroup {
+    #[inline]
+    pub fn add(&mut self, n: &EnvNode) {
+        let l = (n.weight.x + n.weight.y + n.weight.z) * (1.0 / 3.0);
+        self.weight += n.weight;
+        self.axis += n.axis * l;
+        self.lum += l;
+        self.sigma2 += l * n.sigma * n.sigma;
+    }
+
+    /// The group's lookup, and the group emptied (zero when empty).
+    #[inline]
+    pub fn flush(&mut self, env: &PrefilteredEnv) -> Vec3 {
+        if !(self.lum > 0.0) {
+            *self = EnvGroup::default();
+            return Vec3::ZERO;
+        }
+        let len2 = self.axis.dot(self.axis);
+        let spread = (1.0 - len2 / (self.lum * self.lum)).max(0.0);
+        let sigma = (self.sigma2 / self.lum + spread).sqrt();
+        let r = self.weight * env.blurred(self.axis * (1.0 / len2.max(1e-30).sqrt()), sigma);
+        *self = EnvGroup::default();
+        r
+    }
+}
+
+/// The SG mixture of one lobe (module docs), passed node by node to `emit` with
+/// whether the node closes its lookup group (every ⌈nodes / ENV_LOOKUPS⌉-th emitted).
 #[allow(clippy::too_many_arguments)]
-pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Vec3, reading: BrdfReading, volumetric: bool, mut emit: impl FnMut(EnvNode)) {
+pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Vec3, reading: BrdfReading, volumetric: bool, mut emit: impl FnMut(EnvNode, bool)) {
     let k = lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     if k.max_element() <= 0.0 {
         return;
@@ -85,6 +130,8 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
     let k_theta = ((ENV_NODES as f32 * theta_ext / phi_arc).sqrt().round() as usize).clamp(1, 4);
     let k_phi = (ENV_NODES / k_theta).max(1);
     let d_phi = (phi_hi - phi_lo) / k_phi as f32;
+    let per_group = (k_theta * k_phi).div_ceil(ENV_LOOKUPS) as u32;
+    let mut emitted = 0u32;
     // The bounded reading's θ cells are the same in every φ column: computed once.
     let mut cells = [ThetaCell::default(); 4];
     if reading == BrdfReading::Bounded {
@@ -121,7 +168,8 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
                 continue;
             }
             let sigma = cell.sigma.max(0.4 * d_phi * cell.cos);
-            emit(EnvNode { axis: wi, weight, sigma });
+            emitted += 1;
+            emit(EnvNode { axis: wi, weight, sigma }, emitted % per_group == 0);
         }
     }
 }
@@ -178,7 +226,14 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
         r += kd * env.irradiance(n0) * if volumetric { volume_factor(n0, wo) } else { 1.0 };
     }
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
-        lobe_env_nodes(lobe, p.eta, p.a, frame, wo, reading, volumetric, |node| r += node.weight * env.blurred(node.axis, node.sigma));
+        let mut group = EnvGroup::default();
+        lobe_env_nodes(lobe, p.eta, p.a, frame, wo, reading, volumetric, |node, closes| {
+            group.add(&node);
+            if closes {
+                r += group.flush(env);
+            }
+        });
+        r += group.flush(env);
     }
     r
 }
