@@ -297,6 +297,31 @@ pub fn run(args: BenchArgs) -> Result<()> {
             let _ = writeln!(dist, "| {zoom} | {:.2} | {t:.1} | {level} |", 128.0 / (model.width() as f32 * zoom));
         }
         speed = format!("### Frame time by distance ({preset}, 128×128 pixels; by resolution: the table above)\n\n{dist}\n");
+        // The environment light (paper §7.2): the built-in sky against the directional
+        // light, frame time and error against the reference under the same sky.
+        let sky = fabric_runtime::scene::Sky::default().env_map(fabric_runtime::scene::EnvMapOptions::default())?;
+        let env_opts = CpuRenderOptions { env: Some(fabric_runtime::cpu::EnvLight::new(fabric_runtime::scene::PrefilteredEnv::with_lights(&sky, Default::default())?)), ..opts.clone() };
+        let _ = gpu.pass.render(&g, &cam, &[], &env_opts, None)?; // warm-up
+        let mut sky_img = None;
+        let sky_ms = median3(|| {
+            let f = gpu.pass.render(&g, &cam, &[], &env_opts, None)?;
+            sky_img = Some(f.image);
+            Ok(f.gpu_ms)
+        })?;
+        let sky_ref_path = args.out.join(format!("{preset}-reference-sky.exr"));
+        let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--envmap", "sky", "--spp", &spp, "--size", &ref_size, "--out", sky_ref_path.to_str().unwrap_or("r.exr")];
+        ra.extend(&ref_view[..3]);
+        let t_sky_ref = fabric(&logs.join(format!("{preset}-reference-sky.log")), &ra)?;
+        let sky_err = relative_rmse(&sky_img.context("frames")?, &Image::read(&sky_ref_path, 1.0)?)?;
+        let _ = write!(
+            speed,
+            "### Environment light ({preset}, {n}×{n} pixels, the reference view)\n\n| light | GPU ms | relative RMSE vs reference |\n|---|---|---|\n| one directional light | {ms:.1} | {e_dir:.1}% |\n| built-in sky (its sun a shadowed light + SG mixtures) | {sky_ms:.1} ({ratio:.2}×) | {e_sky:.1}% (reference {t_sky_ref:.0} s) |\n\n",
+            n = p.ref_size,
+            e_dir = 100.0 * err,
+            ratio = sky_ms / ms.max(1e-9),
+            e_sky = 100.0 * sky_err
+        );
+        println!("{preset}: built-in sky {sky_ms:.1} ms on the GPU ({:.2}× the directional light), {:.1}% against the reference under the sky", sky_ms / ms.max(1e-9), 100.0 * sky_err);
         let vary = |name: &'static str, what: &'static str, cases: Vec<(String, CpuRenderOptions, Option<Variant>)>| -> Result<Sweep> {
             let mut rows = Vec::new();
             for (label, o, v) in cases {
