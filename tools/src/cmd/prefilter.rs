@@ -16,8 +16,9 @@ pub struct PrefilterArgs {
     /// Relative fit error at which a coarse texel stops adding lobes.
     #[arg(long, default_value_t = 0.03)]
     pub prefilter_tolerance: f32,
-    /// Most lobes per coarse texel (1..=8).
-    #[arg(long, default_value_t = 8)]
+    /// Most lobes per coarse texel (1..=8; more measured no better far away:
+    /// baker/PREFILTER_MEASUREMENTS.md, "Lobe budget").
+    #[arg(long, default_value_t = fabric_baker::prefilter::DEFAULT_MAX_LOBES)]
     pub prefilter_max_lobes: usize,
     /// Direction pairs each coarse texel is fitted on.
     #[arg(long, default_value_t = 128)]
