@@ -223,7 +223,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!("fabric bench --suite {:?}: presets {}, volumes {}, on {} ({})", args.suite, presets.join(","), p.size, info.name, info.kind);
     let light = Light::directional(direction_from_angles(40.0, 200.0), Vec3::ONE);
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
-    let ref_view = ["--periodic", "--view-angles", "30,20", "--light-angles", "40,200"];
+    // The reference view's camera, and its light (the sky's view takes the camera alone).
+    let ref_camera = ["--periodic", "--view-angles", "30,20"];
+    let ref_view: Vec<&str> = ref_camera.iter().copied().chain(["--light-angles", "40,200"]).collect();
     let ref_size = format!("{0}x{0}", p.ref_size);
     let res_heads: String = p.resolutions.iter().map(|(w, h)| format!(" GPU ms {w}x{h} |")).collect();
     let res_rule: String = p.resolutions.iter().map(|_| "---|").collect();
@@ -242,7 +244,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let ref_path = args.out.join(format!("{preset}-reference.exr"));
         let spp = p.ref_spp.to_string();
         let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--spp", &spp, "--size", &ref_size, "--out", ref_path.to_str().unwrap_or("r.exr")];
-        ra.extend(ref_view);
+        ra.extend(&ref_view);
         let t_ref = fabric(&logs.join(format!("{preset}-reference.log")), &ra)?;
         let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report_path)?).context("the bake report")?;
         let bake = &report["bake"];
@@ -310,7 +312,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         })?;
         let sky_ref_path = args.out.join(format!("{preset}-reference-sky.exr"));
         let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--envmap", "sky", "--spp", &spp, "--size", &ref_size, "--out", sky_ref_path.to_str().unwrap_or("r.exr")];
-        ra.extend(&ref_view[..3]);
+        ra.extend(ref_camera);
         let t_sky_ref = fabric(&logs.join(format!("{preset}-reference-sky.log")), &ra)?;
         let sky_err = relative_rmse(&sky_img.context("frames")?, &Image::read(&sky_ref_path, 1.0)?)?;
         let _ = write!(
@@ -360,7 +362,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             let out = args.out.join(format!("{preset}-reference-{spp}spp.exr"));
             let s = spp.to_string();
             let mut a = vec!["reference", vol.to_str().unwrap_or("vol"), "--spp", &s, "--seed", "7", "--size", &ref_size, "--out", out.to_str().unwrap_or("r.exr")];
-            a.extend(ref_view);
+            a.extend(&ref_view);
             let t = fabric(&logs.join(format!("{preset}-reference-{spp}.log")), &a)?;
             rows.push(Row { label: format!("{spp} spp"), time: t, error: relative_rmse(&Image::read(&out, 1.0)?, &reference)? });
         }
