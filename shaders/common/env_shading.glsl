@@ -1,5 +1,5 @@
-// env_shading.glsl — environment light of a hit: each lobe as a mixture of at most 16
-// spherical Gaussians, each one lookup in the prefiltered environment (paper §7.2,
+// env_shading.glsl — environment light of a hit: each lobe as a small mixture of
+// spherical Gaussians, read in a few grouped lookups of the prefiltered environment (paper §7.2,
 // "Extensions"; runtime/HYBRID_FORMAT.md §6).
 //
 // Twin: runtime/src/cpu/env_shading.rs (env_erf, env_theta_cells, lobe_env_nodes,
@@ -16,8 +16,11 @@
 // zenith, x fastest (GpuEnv, runtime/src/hybrid/gpu_layout.rs).
 layout(std430, set = 0, binding = 11) readonly buffer EnvBlock { vec4 env_texels[]; };
 
+// EnvBudget: SGs and lookups per lobe, on the surface and on a flyaway.
 #define ENV_NODES 16u
 #define ENV_LOOKUPS 4u
+#define ENV_FLYAWAY_NODES 8u
+#define ENV_FLYAWAY_LOOKUPS 1u
 #define ENV_PI 3.14159265358979
 #define ENV_TAU 6.28318530717959
 
@@ -168,9 +171,9 @@ vec3 env_group_flush(inout EnvGroup g) {
     return r;
 }
 
-// One lobe's SG mixture, its SGs read from the prefiltered map ENV_LOOKUPS groups at a
-// time (lobe_env_nodes, EnvGroup).
-vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric) {
+// One lobe's SG mixture of at most `nodes` SGs, read from the prefiltered map in at most
+// `lookups` groups (lobe_env_nodes, EnvGroup, EnvBudget).
+vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, uint nodes, uint lookups) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
     if (max(max(k.x, k.y), k.z) <= 0.0) {
         return vec3(0.0);
@@ -192,10 +195,12 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
     }
     float theta_ext = min(6.0 * beta, ENV_PI);
     float phi_arc = max((phi_hi - phi_lo) * cos(theta_c), 1e-4);
-    uint k_theta = uint(clamp(round(sqrt(float(ENV_NODES) * theta_ext / phi_arc)), 1.0, 4.0));
-    uint k_phi = max(ENV_NODES / k_theta, 1u);
+    nodes = max(nodes, 1u);
+    lookups = max(lookups, 1u);
+    uint k_theta = uint(clamp(round(sqrt(float(nodes) * theta_ext / phi_arc)), 1.0, float(min(4u, max(nodes / 2u, 1u)))));
+    uint k_phi = max(nodes / k_theta, 1u);
     float d_phi = (phi_hi - phi_lo) / float(k_phi);
-    uint per_group = (k_theta * k_phi + ENV_LOOKUPS - 1u) / ENV_LOOKUPS;
+    uint per_group = (k_theta * k_phi + lookups - 1u) / lookups;
     uint emitted = 0u;
     EnvGroup group = EnvGroup(vec3(0.0), vec3(0.0), 0.0, 0.0);
     bool bounded = reading == CLOTH_READING_BOUNDED;
@@ -246,7 +251,7 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
 
 // texel_env_response: k_d E(n_0) V_f(n_0) + the lobes' SG mixtures, the texel edited by
 // `e` as texel_response edits it.
-vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric) {
+vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric, uint nodes, uint lookups) {
     EditedTexel t = edited_texel(r, e, rotate);
     vec3 resp = vec3(0.0);
     if (max(max(t.kd.x, t.kd.y), t.kd.z) > 0.0) {
@@ -255,7 +260,7 @@ vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, 
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
-        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric);
+        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, nodes, lookups);
     }
     return resp;
 }

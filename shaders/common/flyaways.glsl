@@ -11,6 +11,8 @@
 
 const float MIN_TRANSMITTANCE = 1e-4;
 const float TILE_LIMIT = 16777216.0;
+// Nodes collected before they are shaded (march_flyaways).
+#define FLY_QUEUE 8u
 
 struct FlyawayMarch {
     vec3 radiance;        // premultiplied by the nodes' opacities
@@ -63,77 +65,117 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         tile[axis] = t_;
         k[axis] = kk;
     }
+    // The march is resumable: it collects up to FLY_QUEUE crossed nodes (entry point,
+    // record, weight T·opacity), then shades them, until the ray is done. The sum and
+    // its order are the CPU's; what the queue changes is that the shading runs in its
+    // own short loop instead of inside the list walk, where SIMD lanes would carry it
+    // through every step any one of them takes.
     float t = t_start;
-    while (out_.columns < max_columns) {
-        if (!periodic && (tile.x != 0 || tile.y != 0)) {
-            return out_;
-        }
-        out_.columns += 1u;
-        vec2 exits = vec2(HF_INF);
-        for (int axis = 0; axis < 2; ++axis) {
-            float base = float(tile[axis]) * float(n0[axis]);
-            float lo = base + float(k[axis] * span);
-            float hi = base + float(min((k[axis] + 1) * span, n0[axis]));
-            if (du[axis] > 0.0) {
-                exits[axis] = (hi - u0[axis]) / du[axis];
-            } else if (du[axis] < 0.0) {
-                exits[axis] = (lo - u0[axis]) / du[axis];
+    bool in_column = false;
+    bool done = false;
+    uint node = NO_NODE;
+    uint guard = 0u;
+    float t_next = t;
+    float d_in = 0.0;
+    float d_out = 0.0;
+    vec2 exits = vec2(HF_INF);
+    while (!done) {
+        uint qn = 0u;
+        float q_t[FLY_QUEUE];
+        float q_w[FLY_QUEUE];
+        uvec2 q_node[FLY_QUEUE];
+        while (qn < FLY_QUEUE && !done) {
+            if (!in_column) {
+                if (out_.columns >= max_columns) {
+                    out_.limited = true;
+                    done = true;
+                    break;
+                }
+                if (!periodic && (tile.x != 0 || tile.y != 0)) {
+                    done = true;
+                    break;
+                }
+                out_.columns += 1u;
+                exits = vec2(HF_INF);
+                for (int axis = 0; axis < 2; ++axis) {
+                    float base = float(tile[axis]) * float(n0[axis]);
+                    float lo = base + float(k[axis] * span);
+                    float hi = base + float(min((k[axis] + 1) * span, n0[axis]));
+                    if (du[axis] > 0.0) {
+                        exits[axis] = (hi - u0[axis]) / du[axis];
+                    } else if (du[axis] < 0.0) {
+                        exits[axis] = (lo - u0[axis]) / du[axis];
+                    }
+                }
+                t_next = max(min(min(exits.x, exits.y), t_end), t);
+                uint column = uint(k.y * dims.x + k.x);
+                d_in = model.top_z - (o.z + d.z * t);
+                d_out = model.top_z - (o.z + d.z * t_next);
+                node = fly_heads[l.fly_head_base + column];
+                guard = 0u;
+                in_column = true;
             }
-        }
-        float t_next = max(min(min(exits.x, exits.y), t_end), t);
-        uint column = uint(k.y * dims.x + k.x);
-        float d_in = model.top_z - (o.z + d.z * t);
-        float d_out = model.top_z - (o.z + d.z * t_next);
-        uint node = fly_heads[l.fly_head_base + column];
-        for (uint guard = 0u; node != NO_NODE && guard < l.fly_nodes; ++guard) {
-            uvec4 nd = fly_nodes[l.fly_node_base + node];
-            node = nd.x;
-            float top = float(nd.y & 0xffffu) * l.voxel_depth;
-            float bottom = top + l.voxel_depth;
-            if (bottom <= d_in) {
+            if (node != NO_NODE && guard < l.fly_nodes) {
+                guard += 1u;
+                uvec4 nd = fly_nodes[l.fly_node_base + node];
+                node = nd.x;
+                float top = float(nd.y & 0xffffu) * l.voxel_depth;
+                float bottom = top + l.voxel_depth;
+                if (bottom <= d_in) {
+                    continue;
+                }
+                if (top >= d_out) {
+                    node = NO_NODE;
+                    continue;
+                }
+                float t_in = max(t, (model.top_z - top - o.z) / d.z);
+                float t_out = min(t_next, (model.top_z - bottom - o.z) / d.z);
+                float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), t_out - t_in, l.fly_edge);
+                if (opacity > 0.0) {
+                    q_t[qn] = t_in;
+                    q_w[qn] = out_.transmittance * opacity;
+                    q_node[qn] = nd.zw;
+                    qn += 1u;
+                    out_.transmittance *= 1.0 - opacity;
+                    if (out_.transmittance < MIN_TRANSMITTANCE) {
+                        out_.transmittance = 0.0;
+                        done = true;
+                    }
+                }
                 continue;
             }
-            if (top >= d_out) {
+            // The column is done: on to the next one the ray enters.
+            in_column = false;
+            if (t_next >= t_end) {
+                done = true;
                 break;
             }
-            float t_in = max(t, (model.top_z - top - o.z) / d.z);
-            float t_out = min(t_next, (model.top_z - bottom - o.z) / d.z);
-            float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), t_out - t_in, l.fly_edge);
-            if (opacity > 0.0) {
-                // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's
-                // closure in Scene::march_level_flyaways).
-                TexelRef b = in_fiber_frame(level, nd.w, octahedral_decode(nd.z), -d);
-                out_.radiance += (out_.transmittance * opacity) * shade(b, o + t_in * d, -d, true, false, shadow_limited);
-                out_.transmittance *= 1.0 - opacity;
-                if (out_.transmittance < MIN_TRANSMITTANCE) {
-                    out_.transmittance = 0.0;
-                    return out_;
-                }
-            }
-        }
-        if (t_next >= t_end) {
-            return out_;
-        }
-        t = t_next;
-        for (int axis = 0; axis < 2; ++axis) {
-            if (exits[axis] <= t_next) {
-                if (du[axis] > 0.0) {
-                    k[axis] += 1;
-                    if (k[axis] >= dims[axis]) {
-                        k[axis] = 0;
-                        tile[axis] += 1;
-                    }
-                } else {
-                    k[axis] -= 1;
-                    if (k[axis] < 0) {
-                        k[axis] = dims[axis] - 1;
-                        tile[axis] -= 1;
+            t = t_next;
+            for (int axis = 0; axis < 2; ++axis) {
+                if (exits[axis] <= t_next) {
+                    if (du[axis] > 0.0) {
+                        k[axis] += 1;
+                        if (k[axis] >= dims[axis]) {
+                            k[axis] = 0;
+                            tile[axis] += 1;
+                        }
+                    } else {
+                        k[axis] -= 1;
+                        if (k[axis] < 0) {
+                            k[axis] = dims[axis] - 1;
+                            tile[axis] -= 1;
+                        }
                     }
                 }
             }
+        }
+        // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's closure
+        // in Scene::march_level_flyaways).
+        for (uint i = 0u; i < qn; ++i) {
+            TexelRef b = in_fiber_frame(level, q_node[i].y, octahedral_decode(q_node[i].x), -d);
+            out_.radiance += q_w[i] * shade(b, o + q_t[i] * d, -d, true, false, shadow_limited);
         }
     }
-    out_.limited = true;
     return out_;
 }
 

@@ -173,7 +173,7 @@ vec3 light_at(uint k, vec3 p, out vec3 wi, out float dist) {
 }
 
 // Radiance leaving p toward wo under the lights, from one texel (a flyaway: edited
-// without rotation).
+// without rotation, lit by the environment with the flyaway budget).
 vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
     Edit e = hit_edit(p);
@@ -197,7 +197,7 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
     }
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
-        radiance += texel_env_response(b, e, false, wo, reading, volumetric);
+        radiance += texel_env_response(b, e, false, wo, reading, volumetric, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
     }
 #endif
     return radiance;
@@ -265,7 +265,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, axis, taps, c, r);
-            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric);
+            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, ENV_NODES, ENV_LOOKUPS);
         }
     }
 #endif

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
-use super::env_shading::texel_env_response;
+use super::env_shading::{EnvBudget, texel_env_response};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
@@ -350,7 +350,7 @@ impl<'a> Scene<'a> {
                 let p = ray.at(t_in);
                 let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
                 let b = if self.edited { self.edit_at(p).apply(b, false) } else { b };
-                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false)
+                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, EnvBudget::FLYAWAY)
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
@@ -377,10 +377,10 @@ impl<'a> Scene<'a> {
         let radiance = if level == 0 {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
-            shade(&b, p, wo, self.lights, self.reading, visible) + self.env_response(&b, wo, volumetric)
+            shade(&b, p, wo, self.lights, self.reading, visible) + self.env_response(&b, wo, volumetric, EnvBudget::SURFACE)
         } else if mix.taps <= 1 {
             let texels = self.bilinear_texels(p, level).map(|(b, w)| (edited(b), w));
-            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric)).sum::<Vec3>()
+            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
         } else {
             let n = mix.taps;
             let mut texels = Vec::with_capacity(4 * n as usize);
@@ -388,16 +388,16 @@ impl<'a> Scene<'a> {
                 let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
                 texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (edited(b), w / n as f32)));
             }
-            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric)).sum::<Vec3>()
+            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
         };
         (radiance, shadow_limited)
     }
 
     /// The environment's SG part at a hit (zero without a map). Unshadowed by the
     /// height field (env_shading.rs states the approximation).
-    fn env_response(&self, b: &TexelBrdf, wo: Vec3, volumetric: bool) -> Vec3 {
+    fn env_response(&self, b: &TexelBrdf, wo: Vec3, volumetric: bool, budget: EnvBudget) -> Vec3 {
         match &self.options.env {
-            Some(env) => texel_env_response(b, wo, self.reading, volumetric, &env.prefiltered),
+            Some(env) => texel_env_response(b, wo, self.reading, volumetric, budget, &env.prefiltered),
             None => Vec3::ZERO,
         }
     }
