@@ -299,9 +299,12 @@ fn bench_writes_its_csvs_plots_and_summary() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
-    for want in ["| twill |", "GPU ms 320x180", "Frame time by distance", "reference view FLIP", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper"] {
+    for want in ["| twill |", "GPU ms 320x180", "Frame time by distance", "reference view FLIP", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper", "### Environment light", "### Transmission"] {
         assert!(summary.contains(want), "summary.md lacks '{want}'");
     }
+    // A front-lit frame of the BSDF model is the same image with the transmission term
+    // compiled in as with it compiled out (the skipped variant costs nothing but time).
+    assert!(summary.contains("(the same image)"), "{summary}");
     for sweep in ["pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp"] {
         let csv = std::fs::read_to_string(out.join(format!("{sweep}.csv"))).unwrap_or_else(|_| panic!("{sweep}.csv"));
         assert!(csv.lines().count() >= 3, "{sweep}.csv has rows: {csv}");

@@ -5,9 +5,10 @@
 //! renderer; on the first preset, GPU frame time by resolution and by distance (level),
 //! and the sweeps that trade run time for error — POM step budget, level bias, K (from
 //! the bake report), lobes per level (from the prefilter's one pass), flyaways on/off,
-//! each skip, the reference's samples per pixel. Every sweep is a CSV and a
-//! time-against-error plot (PNG and SVG); `summary.md` gathers the tables and the plots
-//! and sets our figures beside the paper's Table 1.
+//! each skip, the reference's samples per pixel; the environment light (the built-in
+//! sky) and transmission (a `--bsdf` bake lit from behind) against their references.
+//! Every sweep is a CSV and a time-against-error plot (PNG and SVG); `summary.md`
+//! gathers the tables and the plots and sets our figures beside the paper's Table 1.
 //!
 //! The stages run as `fabric gen` / `bake` / `reference` subprocesses (their logs in
 //! `DIR/logs/`); the drawing runs here.
@@ -324,6 +325,61 @@ pub fn run(args: BenchArgs) -> Result<()> {
             e_sky = 100.0 * sky_err
         );
         println!("{preset}: built-in sky {sky_ms:.1} ms on the GPU ({:.2}× the directional light), {:.1}% against the reference under the sky", sky_ms / ms.max(1e-9), 100.0 * sky_err);
+        // Transmission (paper §7.2, Fig. 17): the same volume baked as a BSDF; its bake
+        // time against the reflection-only bake, its frame lit from the front with the
+        // term compiled out (the default) and in, and lit from 30° behind the sheet
+        // against the reference.
+        let bsdf_path = args.out.join(format!("{preset}-bsdf.hyb"));
+        let bsdf_report_path = args.out.join(format!("{preset}-bsdf-bake.json"));
+        fabric(&logs.join(format!("{preset}-bake-bsdf.log")), &["bake", vol.to_str().unwrap_or("vol"), "--bsdf", "--out", bsdf_path.to_str().unwrap_or("b.hyb"), "--report", bsdf_report_path.to_str().unwrap_or("b.json"), "--held-out", &held])?;
+        let bsdf_report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&bsdf_report_path)?).context("the BSDF bake report")?;
+        let t_bsdf = bsdf_report["bake"]["total_seconds"].as_f64().unwrap_or(f64::NAN);
+        let t_brdf = bake["total_seconds"].as_f64().unwrap_or(t_bake);
+        // The held-out views lit from below (ω_i.z < 0), 4×4-block error.
+        let mut backlit_held: Vec<f64> = bsdf_report["held_out"].as_array().map(|v| v.iter().filter(|h| h["pair"]["wi"][2].as_f64().is_some_and(|z| z < 0.0)).filter_map(|h| h["block_error"].as_f64()).collect()).unwrap_or_default();
+        backlit_held.sort_by(f64::total_cmp);
+        let backlit_median = backlit_held.get(backlit_held.len() / 2).copied().unwrap_or(f64::NAN);
+        let bm = read_file(&bsdf_path)?;
+        let bg = gpu.pass.upload(&bm, true)?;
+        let front = HybridPass::variant(&bg, std::slice::from_ref(&light), false, bm.meta.fitted_with_shadowing, &opts);
+        let (t_off, img_off) = gpu.frame(&bg, &cam, &light, &opts, Some(front))?;
+        let (t_on, img_on) = gpu.frame(&bg, &cam, &light, &opts, Some(Variant { transmission: true, ..front }))?;
+        let front_same = img_off == img_on;
+        let back_light = Light::directional(direction_from_angles(150.0, 200.0), Vec3::ONE);
+        let (t_back, img_back) = gpu.frame(&bg, &cam, &back_light, &opts, None)?;
+        let back_ref_path = args.out.join(format!("{preset}-reference-backlit.exr"));
+        let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--spp", &spp, "--size", &ref_size, "--out", back_ref_path.to_str().unwrap_or("r.exr"), "--light-angles", "150,200"];
+        ra.extend(ref_camera);
+        let t_back_ref = fabric(&logs.join(format!("{preset}-reference-backlit.log")), &ra)?;
+        let back_reference = Image::read(&back_ref_path, 1.0)?;
+        img_back.write(&args.out.join(format!("{preset}-backlit-model.exr")), 1.0)?;
+        let back_err = relative_rmse(&img_back, &back_reference)?;
+        let back_block_err = relative_rmse(&img_back.box_downsample(4), &back_reference.box_downsample(4))?;
+        let back_ratio = img_back.mean() / back_reference.mean().max(1e-30);
+        // The reference's own noise lit from behind: a second seed against the first.
+        let seed_path = args.out.join(format!("{preset}-reference-backlit-seed7.exr"));
+        let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--spp", &spp, "--seed", "7", "--size", &ref_size, "--out", seed_path.to_str().unwrap_or("r.exr"), "--light-angles", "150,200"];
+        ra.extend(ref_camera);
+        fabric(&logs.join(format!("{preset}-reference-backlit-seed7.log")), &ra)?;
+        let back_noise = relative_rmse(&Image::read(&seed_path, 1.0)?, &back_reference)?;
+        let _ = write!(
+            speed,
+            "### Transmission ({preset}, `fabric bake --bsdf`; {n}×{n} pixels, the reference view)\n\n| | value |\n|---|---|\n\
+             | bake with `--bsdf` / reflection only | {t_bsdf:.1} s / {t_brdf:.1} s ({:.2}×; the paper: about 2×) |\n\
+             | lit from the front: GPU ms, term compiled out / in | {t_off:.1} / {t_on:.1} ({}) |\n\
+             | lit from 30° behind: GPU ms | {t_back:.1} |\n\
+             | lit from 30° behind: relative RMSE vs reference per pixel / 4×4 blocks, mean model/reference | {:.1}% / {:.1}%, {back_ratio:.2} (reference {t_back_ref:.0} s; two reference seeds differ by {:.1}%) |\n\
+             | backlit held-out views of the bake (4×4 blocks, median of {}) | {:.1}% |\n\n",
+            t_bsdf / t_brdf.max(1e-9),
+            if front_same { "the same image" } else { "the images differ" },
+            100.0 * back_err,
+            100.0 * back_block_err,
+            100.0 * back_noise,
+            backlit_held.len(),
+            100.0 * backlit_median,
+            n = p.ref_size,
+        );
+        println!("{preset}: BSDF bake {t_bsdf:.0} s ({:.2}× the reflection-only bake); front-lit {t_off:.1} / {t_on:.1} ms with the term out / in ({}); lit from behind {:.1}% against the reference ({:.1}% over 4×4 blocks; reference noise {:.1}%)", t_bsdf / t_brdf.max(1e-9), if front_same { "same image" } else { "images differ" }, 100.0 * back_err, 100.0 * back_block_err, 100.0 * back_noise);
         let vary = |name: &'static str, what: &'static str, cases: Vec<(String, CpuRenderOptions, Option<Variant>)>| -> Result<Sweep> {
             let mut rows = Vec::new();
             for (label, o, v) in cases {
