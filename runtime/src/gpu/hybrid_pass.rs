@@ -102,6 +102,9 @@ pub struct HybridMesh {
 /// One prepared frame of the mesh pass ([`HybridPass::prepare_mesh`]).
 pub struct MeshDraw {
     pipeline: Arc<Pipeline>,
+    /// The environment behind the meshes (hybrid_sky.frag), drawn first; none without a
+    /// map (the clear colour is the background).
+    sky: Option<Arc<Pipeline>>,
     set: DescriptorSet,
     _params: Buffer,
     _mask: Buffer,
@@ -135,6 +138,9 @@ pub struct HybridPass {
     mesh_vert: ShaderModule,
     mesh_frag: ShaderModule,
     mesh_pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
+    sky_vert: ShaderModule,
+    sky_frag: ShaderModule,
+    sky_pipeline: Mutex<Option<Arc<Pipeline>>>,
 }
 
 /// Push constants of hybrid_mesh.vert/.frag. 80 bytes.
@@ -158,6 +164,8 @@ impl HybridPass {
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
         let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
         let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
+        let sky_vert = ShaderModule::embedded(device, "hybrid_sky.vert")?;
+        let sky_frag = ShaderModule::embedded(device, "hybrid_sky.frag")?;
         Ok(HybridPass {
             device: device.clone(),
             set_layout,
@@ -169,6 +177,9 @@ impl HybridPass {
             mesh_vert,
             mesh_frag,
             mesh_pipelines: Mutex::new(HashMap::new()),
+            sky_vert,
+            sky_frag,
+            sky_pipeline: Mutex::new(None),
         })
     }
 
@@ -243,6 +254,33 @@ impl HybridPass {
         Ok(p)
     }
 
+    /// The sky behind the meshes: one pipeline (HAS_ENV on; the map's visibility is a
+    /// parameter), built on first use.
+    fn sky_pipeline(&self) -> Result<Arc<Pipeline>, GpuRenderError> {
+        let mut slot = self.sky_pipeline.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = slot.as_ref() {
+            return Ok(p.clone());
+        }
+        let v = Variant { flyaways: false, shadows: false, lights: 0, relief: false, lobes: 1, env: true, transmission: false };
+        let p = Arc::new(Pipeline::graphics(
+            &self.device,
+            &GraphicsDesc {
+                name: "hybrid sky",
+                vertex: &self.sky_vert,
+                fragment: &self.sky_frag,
+                layout: &self.mesh_layout,
+                vertex_stride: 0,
+                vertex_attributes: &[],
+                color_format: COLOR_FORMAT,
+                depth_format: Some(DEPTH_FORMAT),
+                cull: vk::CullModeFlags::NONE,
+                specialization: v.specialization(),
+            },
+        )?);
+        *slot = Some(p.clone());
+        Ok(p)
+    }
+
     /// Uploads a base mesh for [`HybridPass::prepare_mesh`].
     pub fn upload_mesh(&self, mesh: &Mesh) -> Result<HybridMesh, GpuRenderError> {
         if mesh.indices.is_empty() || mesh.vertices.is_empty() {
@@ -285,15 +323,22 @@ impl HybridPass {
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
         let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
-        Ok(MeshDraw { pipeline, set, _params: params, _mask: mask, _env: env_buf, _unused: unused, push, background: options.background, variant, levels: model.levels })
+        let sky = if options.env.is_some() { Some(self.sky_pipeline()?) } else { None };
+        Ok(MeshDraw { pipeline, sky, set, _params: params, _mask: mask, _env: env_buf, _unused: unused, push, background: options.background, variant, levels: model.levels })
     }
 
-    /// Records `draw` of `mesh` into `target` (attachments cleared to the background;
-    /// the color image is left in COLOR_ATTACHMENT_OPTIMAL).
+    /// Records `draw` of `mesh` into `target` (attachments cleared to the background,
+    /// then the environment behind where there is one; the color image is left in
+    /// COLOR_ATTACHMENT_OPTIMAL).
     pub fn record_mesh(&self, rec: &Recorder<'_>, target: &OffscreenTarget, mesh: &HybridMesh, draw: &MeshDraw) {
         let bg = draw.background;
         target.record_begin(rec);
         rec.begin_rendering(&ColorTarget { image: &target.color, clear: [bg.x, bg.y, bg.z, 1.0] }, Some(&target.depth));
+        if let Some(sky) = &draw.sky {
+            rec.bind_pipeline(sky);
+            rec.bind_sets(sky, &[&draw.set]);
+            rec.draw(3);
+        }
         rec.bind_pipeline(&draw.pipeline);
         rec.bind_sets(&draw.pipeline, &[&draw.set]);
         rec.push_constants(&draw.pipeline, bytemuck::bytes_of(&draw.push));
