@@ -3,7 +3,8 @@
 //
 // Twin: runtime/src/cpu/flyaways.rs (flyaway_opacity, march_flyaways, whose module docs
 // define the columns and the opacity 1 - (1 - alpha)^(l/s)); the shading of a node is
-// the closure the CPU's Scene::march_level_flyaways passes, inlined.
+// the closure the CPU's Scene::march_level_flyaways passes, run on queued nodes (the same
+// sum in the same order; march_flyaways says why).
 #ifndef FLYAWAYS_GLSL
 #define FLYAWAYS_GLSL
 

@@ -26,7 +26,7 @@
 //! (Columns at Gauss–Legendre nodes instead of midpoints were measured and dropped: the
 //! cut at the tile plane and at n·ω_i = 0 is a step inside the band, which few-point
 //! rules integrate worse — a constant map's integral up to 5% off with 16 SGs, 20% with
-//! 8, against 2% and 17% with midpoints.)
+//! 8, against 3.7% and 16.5% with midpoints.)
 //! The diffuse term is k_d · E(n_0) · V_f(n_0, ω_o), E the irradiance map.
 //!
 //! # Visibility (the stated approximation)
@@ -51,7 +51,7 @@ use crate::scene::{EnvMap, PrefilteredEnv};
 /// small share of the pixel's: measured in runtime/ENV_MEASUREMENTS.md, "Speed").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct EnvBudget {
-    /// Most SGs per lobe (K_θ·K_φ ≤ nodes, K_θ ≤ 4).
+    /// Most SGs per lobe (K_θ·K_φ ≤ nodes, K_θ ≤ min(4, nodes / 2)).
     pub nodes: usize,
     /// Most lookups of the prefiltered map per lobe: the mixture's SGs, in band order
     /// (neighbours), are merged ⌈SGs / lookups⌉ at a time into one lookup
