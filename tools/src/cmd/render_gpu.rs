@@ -42,7 +42,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
     let info = device.info().clone();
     println!("device: {} ({}, driver {})", info.name, info.kind, info.driver);
     if info.kind == "CPU" {
-        println!("note: {} is a software Vulkan driver: its frame times say nothing of a GPU's, and the CPU renderer (--backend cpu) is about 3x faster on the same cores (runtime/GPU_MEASUREMENTS.md)", info.name);
+        println!("note: {} is a software Vulkan driver: its frame times say nothing of a GPU's, and the CPU renderer (--backend cpu) is 2–3x faster on the same cores (runtime/GPU_MEASUREMENTS.md)", info.name);
     }
     let pass = HybridPass::new(&device)?;
     let upload_start = std::time::Instant::now();
