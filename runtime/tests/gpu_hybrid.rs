@@ -320,14 +320,19 @@ fn coarse_relief_takes_fewer_steps_far_away_at_a_small_error_in_both_twins() {
     assert_eq!(render(&m, &near, &lights, &coarse).unwrap(), render(&m, &near, &lights, &exact).unwrap());
 }
 
+/// The built-in sky turned 35°, prefiltered, its sun extracted as a light.
+fn sky_light() -> fabric_runtime::cpu::EnvLight {
+    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, PrefilteredEnv, Sky};
+    let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg: 35.0 }).unwrap();
+    fabric_runtime::cpu::EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap())
+}
+
 #[test]
 fn environment_light_matches_the_cpu_twin() {
     use fabric_runtime::cpu::{EnvLight, Edits};
-    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, PrefilteredEnv, Sky};
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
-    let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg: 35.0 }).unwrap();
-    let env = EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap());
+    let env = sky_light();
     assert_eq!(env.prefiltered.lights.len(), 1, "the sun is shaded as a light");
     // The sample model has flyaways and a coarse level: every kind of hit reads the map.
     let m = examples::sample_model();
@@ -429,11 +434,10 @@ fn light_behind_the_cloth_matches_the_cpu_twin_and_costs_nothing_when_absent() {
 #[test]
 fn the_environment_is_seen_behind_meshes() {
     use fabric_runtime::cpu::EnvLight;
-    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, Mesh, PrefilteredEnv, Sky};
+    use fabric_runtime::scene::Mesh;
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
-    let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg: 35.0 }).unwrap();
-    let env = EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap());
+    let env = sky_light();
     let s = examples::synthetic_model(64, 7);
     let g = pass.upload(&s, true).unwrap();
     let sphere = Mesh::sphere(0.5, 64, 32);
