@@ -343,7 +343,7 @@ pub fn level0(g: &Geometry, clusters: &[u32], params: &[ClothParams]) -> Level {
         table.push(p);
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(g.normals[j], g.tangents[j], clusters.get(j).copied().unwrap_or(0) as u16)).collect();
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
@@ -355,7 +355,7 @@ pub fn level0_per_texel(g: &Geometry, params: &[ClothParams]) -> Level {
         let lobes: Vec<_> = p.lobes().iter().map(|l| (*l, n, t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None }
 }
 
 /// Bakes `volume` into a hybrid model (level 0).

@@ -240,3 +240,22 @@ fn degenerate_models_end_in_a_clear_result() {
         }
     }
 }
+
+#[test]
+fn view_tilts_bring_grazing_far_views_closer_and_leave_views_from_above_alone() {
+    let (_, tilted) = chain_of(64);
+    let (_, plain) = chain_with(64, &PrefilterOptions { view_tilt: false, ..Default::default() });
+    assert!(tilted.levels[0].view_tilt.is_none() && tilted.levels[1..].iter().all(|l| l.view_tilt.is_some()));
+    assert!(plain.levels.iter().all(|l| l.view_tilt.is_none()));
+    // Straight down the tilt is zero and the visibility 1: the same image.
+    let light = [Light::directional(Vec3::new(0.4, 0.2, 1.0).normalize(), Vec3::ONE)];
+    let above = far_camera_at(&tilted, 0.0, 0.0, 16);
+    let opts = CpuRenderOptions { periodic: true, ..Default::default() };
+    assert_eq!(render(&tilted, &above, &light, &opts).unwrap(), render(&plain, &above, &light, &opts).unwrap());
+    let e = |m: &HybridModel, polar: f32| fabric_baker::prefilter::far_view::far_view(m, polar, 16).unwrap().chain;
+    for polar in [60.0f32, 70.0] {
+        let (with, without) = (e(&tilted, polar), e(&plain, polar));
+        println!("{polar}°: chain {:.1}% with view tilts, {:.1}% without", 100.0 * with, 100.0 * without);
+        assert!(with < without, "{polar}°: {with} with the tilts against {without} without");
+    }
+}

@@ -20,6 +20,14 @@ fn bsdf_sample() -> HybridModel {
     m
 }
 
+/// The sample with view tilts on its coarse levels (format 1.4).
+fn tilted_sample() -> HybridModel {
+    let mut m = sample();
+    examples::add_view_tilts(&mut m, 0.3, 2);
+    m.validate().expect("the tilted sample is valid");
+    m
+}
+
 fn sample_bytes() -> Vec<u8> {
     format::to_bytes(&sample()).unwrap()
 }
@@ -157,6 +165,43 @@ fn transmission_corruption_catalogue() {
     ];
     for (name, edit, expect) in cases {
         let mut parts = Parts::of(&format::to_bytes(&bsdf_sample()).unwrap());
+        edit(&mut parts);
+        let e = err(&parts.assemble());
+        assert!(expect(&e), "{name}: unexpected error {e:?}");
+    }
+}
+
+#[test]
+fn view_tilts_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = tilted_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    assert!(m.levels[0].view_tilt.is_none() && m.levels[1..].iter().all(|l| l.view_tilt.as_ref().is_some_and(|t| t.len() == (l.width * l.height) as usize)));
+    // Optional: a 1.3 reader skips the section and shades the frames as stored.
+    let mut parts = Parts::of(&bytes);
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::ViewTilt as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4001;
+    }
+    let plain = format::read(&parts.assemble()).unwrap();
+    assert!(plain.levels.iter().all(|l| l.view_tilt.is_none()));
+    assert_eq!(plain, sample());
+}
+
+#[test]
+fn view_tilt_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("NaN b00", |p| p.find(SectionKind::ViewTilt, 1)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "b00", level: 1, .. }))),
+        ("infinite c1", |p| p.find(SectionKind::ViewTilt, 2)[10..12].copy_from_slice(&0x7c00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "c1", level: 2, .. }))),
+        ("b11 = 100", |p| p.find(SectionKind::ViewTilt, 1)[6..8].copy_from_slice(&0x5640u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "b11", .. }))),
+        ("one record short", |p| { let t = p.find(SectionKind::ViewTilt, 1); t.truncate(t.len() - 12) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "view tilt records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::ViewTilt, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "VIEW_TILT")),
+        ("on level 0", |p| p.entry(SectionKind::ViewTilt, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltAtLevel0))),
+        ("for a level that does not exist", |p| p.entry(SectionKind::ViewTilt, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+    ];
+    for (name, edit, expect) in cases {
+        let mut parts = Parts::of(&format::to_bytes(&tilted_sample()).unwrap());
         edit(&mut parts);
         let e = err(&parts.assemble());
         assert!(expect(&e), "{name}: unexpected error {e:?}");
@@ -386,7 +431,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample())] {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample())] {
         let bytes = format::to_bytes(&model).unwrap();
         let path = dir.join(name);
         if std::env::var_os("FABRIC_BLESS").is_some() {

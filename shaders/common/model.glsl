@@ -17,6 +17,7 @@
 
 #include "brdf.glsl"
 #include "common/packing.glsl"
+#include "common/visible_normal.glsl"
 
 #define GPU_MAX_LEVELS 16
 #define GPU_MAX_QUAD_LEVELS 18
@@ -42,7 +43,7 @@ struct GpuLevel {
     float voxel_depth;
     float fly_edge;
     uint trans_base;    // first transmission record (binding 12), NO_NODE: none
-    uint pad1;
+    uint tilt_base;     // first view tilt record (binding 13), NO_NODE: none
     uint pad2;
 };
 
@@ -79,6 +80,9 @@ layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes
 // PackedTransmission records of every BSDF level, 24 bytes = 3 uvec2 each (format 1.3;
 // one zero record when none).
 layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec2 transmissions[]; };
+// PackedViewTilt records of every coarse level that has them, 12 bytes = 3 uints each
+// (format 1.4; one zero record when none).
+layout(std430, set = 0, binding = 13) readonly buffer TiltBlock { uint view_tilts[]; };
 
 // i mod n in [0, n) for n > 0 (Rust's rem_euclid); GLSL's % is undefined for negative
 // operands, so only non-negative ones reach it.
@@ -139,6 +143,11 @@ struct TexelRef {
     bool framed;
     ClothFrame frame;
     uint trans;         // its transmission record, NO_NODE: none (BRDF levels, flyaways)
+    // Per-texel frames are turned from tilt_n0 to tilt_nv as they are decoded (the
+    // view tilt; clustered frames are turned in place): Scene::bilinear_texels_seen.
+    bool tilted;
+    vec3 tilt_n0;
+    vec3 tilt_nv;
 };
 
 // Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
@@ -158,7 +167,60 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
         r.framed = true;
         r.frame = ClothFrame(vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0));
     }
+    r.tilted = false;
+    r.tilt_n0 = vec3(0.0, 0.0, 1.0);
+    r.tilt_nv = vec3(0.0, 0.0, 1.0);
     return r;
+}
+
+// PackedViewTilt record `index` (runtime/src/hybrid/lobe.rs).
+ViewTilt packed_view_tilt(uint index) {
+    uint a = view_tilts[3u * index];
+    uint b = view_tilts[3u * index + 1u];
+    uint c = view_tilts[3u * index + 2u];
+    ViewTilt t;
+    t.b = vec4(f16_value(a), f16_value(a >> 16), f16_value(b), f16_value(b >> 16));
+    t.c = vec2(f16_value(c), f16_value(c >> 16));
+    return t;
+}
+
+// A frame as texel r shows it: turned by its view tilt.
+ClothFrame tilted_frame(TexelRef r, ClothFrame f) {
+    if (r.tilted) {
+        f.n = rotate_arc(r.tilt_n0, r.tilt_nv, f.n);
+        f.t = rotate_arc(r.tilt_n0, r.tilt_nv, f.t);
+        f.b = rotate_arc(r.tilt_n0, r.tilt_nv, f.b);
+    }
+    return f;
+}
+
+// Texel (i, j) of `level` seen from wo: its frames turned by its view tilt where the
+// level has one; returns its visibility v(wo) (1 without). Twin:
+// Scene::bilinear_texels_seen (runtime/src/cpu/render.rs).
+float seen_from(inout TexelRef r, uint level, uvec2 ij, vec3 wo) {
+    GpuLevel l = model.levels[level];
+    if (l.tilt_base == NO_NODE) {
+        return 1.0;
+    }
+    ViewTilt t = packed_view_tilt(l.tilt_base + ij.y * l.dims.x + ij.x);
+    vec3 n0 = r.frame.n;
+    if (r.framed) {
+        uvec4 h = brdf_headers[r.header];
+        n0 = octahedral_decode(brdf_lobes[r.lobe_base + h.w].x);
+    }
+    vec3 nv = visible_normal(n0, t.b, wo);
+    if (nv != n0) {
+        if (r.framed) {
+            r.tilted = true;
+            r.tilt_n0 = n0;
+            r.tilt_nv = nv;
+        } else {
+            r.frame.n = rotate_arc(n0, nv, r.frame.n);
+            r.frame.t = rotate_arc(n0, nv, r.frame.t);
+            r.frame.b = rotate_arc(n0, nv, r.frame.b);
+        }
+    }
+    return view_visibility(t, wo);
 }
 
 // The level-`level` texel under world point p (wrapped or clamped into the tile).

@@ -70,14 +70,14 @@ EditedTexel edited_texel(TexelRef r, Edit e, bool rotate) {
     t.count = min((h.z >> 16) & 0xffu, min(LOBE_BOUND, uint(CLOTH_MAX_LOBES)));
     t.first = r.lobe_base + h.w;
     // Lobe 0's frame carries k_d (per-texel tables have at least one lobe).
-    t.n0 = r.framed ? octahedral_decode(brdf_lobes[t.first].x) : r.frame.n;
+    t.n0 = r.framed ? tilted_frame(r, ClothFrame(octahedral_decode(brdf_lobes[t.first].x), vec3(0.0), vec3(0.0))).n : r.frame.n;
     return t;
 }
 
 // Lobe j of an edited texel and its frame (tangent rotated, widths scaled, tinted).
 ClothLobe edited_lobe(TexelRef r, Edit e, EditedTexel t, uint j, out ClothFrame f) {
     uvec4 l = brdf_lobes[t.first + j];
-    f = r.framed ? decode_frame(l.x, l.y & 0xffffu) : r.frame;
+    f = r.framed ? tilted_frame(r, decode_frame(l.x, l.y & 0xffffu)) : r.frame;
     if (t.rotate) {
         vec3 tt = f.t * t.rc + f.b * t.rs;
         f.t = tt;
@@ -123,7 +123,7 @@ vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 
     if (r.framed) {
         uvec4 h = brdf_headers[r.header];
         uvec4 l = brdf_lobes[r.lobe_base + h.w];
-        f = decode_frame(l.x, l.y & 0xffffu);
+        f = tilted_frame(r, decode_frame(l.x, l.y & 0xffffu));
     }
     if (rotate && e.tangent_rotation != 0.0) {
         vec3 tt = f.t * cos(e.tangent_rotation) + f.b * sin(e.tangent_rotation);
@@ -146,7 +146,7 @@ float volume_factor(vec3 wi, vec3 wo) {
 // `fiber` seen from wo.
 TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
     GpuLevel l = model.levels[level];
-    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE);
+    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE, false, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0));
 }
 
 // Visibility of a light from p (height-field shadow ray); counts step-limited rays.
@@ -206,7 +206,7 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
 // coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of `taps` spread over
 // `axis` (world x-y) centred on p. Returns its weight.
-float surface_texel(uint level, vec3 p, vec2 axis, uint taps, uint k, out TexelRef r) {
+float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, uint k, out TexelRef r) {
     if (level == 0u) {
         uvec2 ij0 = texel_at(p, 0u);
         r = texel_brdf(0u, ij0.x, ij0.y);
@@ -218,7 +218,23 @@ float surface_texel(uint level, vec3 p, vec2 axis, uint taps, uint k, out TexelR
     uvec2 ij;
     float w = bilinear_texel(p + vec3(offset, 0.0), level, int(k & 3u), ij);
     r = texel_brdf(level, ij.x, ij.y);
-    return taps <= 1u ? w : w / n;
+    float v = seen_from(r, level, ij, wo);
+    return taps <= 1u ? w : w * v / n;
+}
+
+// 1 / the sum of surface_texel's weights where a level with view tilts is read by
+// anisotropic taps (each tap weighted by its texel's visibility), else 1. Twin:
+// normalize_weights in Scene::shade_surface.
+float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps) {
+    if (level == 0u || taps <= 1u || model.levels[level].tilt_base == NO_NODE) {
+        return 1.0;
+    }
+    float total = 0.0;
+    for (uint c = 0u; c < 4u * taps; ++c) {
+        TexelRef r;
+        total += surface_texel(level, p, wo, axis, taps, c, r);
+    }
+    return total > 0.0 ? 1.0 / total : 1.0;
 }
 
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
@@ -227,6 +243,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
     uint reading = model_reading();
     Edit e = hit_edit(p);
     uint count = level == 0u ? 1u : 4u * taps;
+    float scale = surface_weight_scale(level, p, wo, axis, taps);
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
@@ -242,7 +259,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
                 vec3 through = vec3(0.0);
                 for (uint c = 0u; c < count; ++c) {
                     TexelRef r;
-                    float w = surface_texel(level, p, axis, taps, c, r);
+                    float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
                     through += w * texel_transmission_response(r, e, true, wi, wo);
                 }
                 radiance += irradiance * through;
@@ -252,7 +269,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         vec3 response = vec3(0.0);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, axis, taps, c, r);
+            float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
             response += w * texel_response(r, e, true, wi, wo, reading);
         }
         if (max3(response) <= 0.0) {
@@ -264,7 +281,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
     if (HAS_ENV) {
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, axis, taps, c, r);
+            float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, ENV_NODES, ENV_LOOKUPS);
         }
     }

@@ -19,6 +19,7 @@ pub mod far_view;
 pub mod flyaways;
 pub mod lobe_fit;
 pub mod pairs;
+pub mod view_tilt;
 
 use std::time::Instant;
 
@@ -73,12 +74,15 @@ pub struct PrefilterOptions {
     pub periodic: bool,
     /// Nelder–Mead evaluations per free width (0: moments and NNLS only).
     pub evals_per_dim: usize,
+    /// Fit each coarse texel's view tilt (its frames turn toward the viewer as its
+    /// footprint's visible normals do; [`view_tilt`]).
+    pub view_tilt: bool,
     pub seed: u64,
 }
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, seed: 1 }
     }
 }
 
@@ -115,6 +119,12 @@ pub struct LevelReport {
     /// level-0 terms over the backlit pairs, and its bytes (None / 0: no transmission).
     pub transmission_fit_error: Option<f64>,
     pub transmission_bytes: u64,
+    /// Mean Frobenius norm of the texels' view tilt B, and its bytes (None / 0: none).
+    pub mean_view_tilt: Option<f64>,
+    /// Mean relative error of the texels' responses against what distant views see of
+    /// their footprints (hit-weighted level-0 responses), without and with the tilt.
+    pub view_tilt_error: Option<(f64, f64)>,
+    pub view_tilt_bytes: u64,
     pub seconds: f64,
 }
 
@@ -128,10 +138,12 @@ pub struct PrefilterReport {
     /// Bytes of level 0 and of the coarse levels (surface, flyaways, transmission).
     pub level0_bytes: u64,
     pub chain_bytes: u64,
+    /// Time spent fitting the view tilts of all levels.
+    pub view_tilt_seconds: f64,
 }
 
 fn level_bytes(l: &Level) -> u64 {
-    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size()) + l.transmission_bytes()
+    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size()) + l.transmission_bytes() + l.view_tilt_bytes()
 }
 
 /// Level-0 texels under texel (i, j) of level ℓ, along one axis of `n` texels.
@@ -178,6 +190,9 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     let tracer = HeightTracer::new(model, opts.periodic);
     let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
     let texel = model.texel_size();
+    let t_tilt = Instant::now();
+    let mut tilts = opts.view_tilt.then(|| view_tilt::trace_visible_hits(model, count, opts.periodic));
+    report.view_tilt_seconds = t_tilt.elapsed().as_secs_f64();
     for level in 1..count {
         let t0 = Instant::now();
         let (lw, lh) = level_dims(w0, h0, level);
@@ -275,7 +290,13 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
         let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage).map_err(PrefilterError::Output)? } else { None };
         let transmission_fit_error = bsdf.then(|| trans_error / n);
-        let l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records) };
+        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None };
+        let t_level = Instant::now();
+        let fitted = tilts.as_mut().map(|t| t.fit_level(model, level, &l, reading));
+        report.view_tilt_seconds += t_level.elapsed().as_secs_f64();
+        let mean_tilt = fitted.as_ref().map(|f| f.records.iter().map(|t| t.decode().b.iter().map(|b| (b * b) as f64).sum::<f64>().sqrt()).sum::<f64>() / f.records.len().max(1) as f64);
+        let view_tilt_error = fitted.as_ref().map(|f| (f.error_untilted, f.error_tilted));
+        l.view_tilt = fitted.map(|f| f.records);
         report.levels.push(LevelReport {
             level,
             width: lw,
@@ -290,6 +311,9 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             flyaway_bytes: l.flyaways.as_ref().map_or(0, |f| f.byte_size()),
             transmission_fit_error,
             transmission_bytes: l.transmission_bytes(),
+            mean_view_tilt: mean_tilt,
+            view_tilt_error,
+            view_tilt_bytes: l.view_tilt_bytes(),
             seconds: t0.elapsed().as_secs_f64(),
         });
         report.chain_bytes += level_bytes(&l);

@@ -58,6 +58,7 @@
 #![allow(clippy::manual_clamp, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod twin;
+pub mod visible_normal;
 
 use glam::Vec3;
 

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use super::flyaways::{FlyawayGrid, march_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
 use super::env_shading::{EnvBudget, texel_env_response};
+use crate::brdf::visible_normal::{tilt_frames, view_visibility};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
@@ -244,6 +245,30 @@ impl<'a> Scene<'a> {
     /// between four coarse texels sees their blend rather than one of them. Level 0 is
     /// shaded by its nearest texel (the model's own data).
     pub fn bilinear_texels(&self, p: Vec3, level: usize) -> [(TexelBrdf, f32); 4] {
+        let l = &self.model.levels[level];
+        self.bilinear_corners(p, level).map(|((i, j), w)| (l.texel_brdf(i, j), w))
+    }
+
+    /// [`Scene::bilinear_texels`] as seen from `wo`: where the level has view tilts
+    /// (`brdf::visible_normal`), each texel's frames turned toward the viewer; with its
+    /// bilinear weight and its visibility v(ω_o) (1 without a tilt).
+    pub fn bilinear_texels_seen(&self, p: Vec3, level: usize, wo: Vec3) -> [(TexelBrdf, f32, f32); 4] {
+        let l = &self.model.levels[level];
+        self.bilinear_corners(p, level).map(|((i, j), w)| {
+            let mut b = l.texel_brdf(i, j);
+            match l.view_tilt_at(i, j) {
+                Some(tilt) => {
+                    let n = (b.params.lobe_count as usize).clamp(1, crate::brdf::MAX_LOBES);
+                    tilt_frames(&mut b.frames[..n], &tilt, wo);
+                    (b, w, view_visibility(&tilt, wo))
+                }
+                None => (b, w, 1.0),
+            }
+        })
+    }
+
+    /// The texels and weights of [`Scene::bilinear_texels`].
+    fn bilinear_corners(&self, p: Vec3, level: usize) -> [((u32, u32), f32); 4] {
         let m = self.model;
         let l = &m.levels[level];
         let (w, h) = (l.width as i32, l.height as i32);
@@ -253,7 +278,7 @@ impl<'a> Scene<'a> {
         let (fx, fy) = (u.x - i0, u.y - j0);
         let index = |i: i32, n: i32| if self.options.periodic { i.rem_euclid(n) } else { i.clamp(0, n - 1) };
         let (i0, j0) = (i0 as i32, j0 as i32);
-        let texel = |di: i32, dj: i32, weight: f32| (l.texel_brdf(index(i0 + di, w) as u32, index(j0 + dj, h) as u32), weight);
+        let texel = |di: i32, dj: i32, weight: f32| ((index(i0 + di, w) as u32, index(j0 + dj, h) as u32), weight);
         [texel(0, 0, (1.0 - fx) * (1.0 - fy)), texel(1, 0, fx * (1.0 - fy)), texel(0, 1, (1.0 - fx) * fy), texel(1, 1, fx * fy)]
     }
 
@@ -379,14 +404,17 @@ impl<'a> Scene<'a> {
             let b = edited(l.texel_brdf(i, j));
             shade(&b, p, wo, self.lights, self.reading, visible) + self.env_response(&b, wo, volumetric, EnvBudget::SURFACE)
         } else if mix.taps <= 1 {
-            let texels = self.bilinear_texels(p, level).map(|(b, w)| (edited(b), w));
+            let texels = self.bilinear_texels_seen(p, level, wo).map(|(b, w, _)| (edited(b), w));
             shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
         } else {
             let n = mix.taps;
             let mut texels = Vec::with_capacity(4 * n as usize);
             for k in 0..n {
                 let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
-                texels.extend(self.bilinear_texels(p + offset.extend(0.0), level).map(|(b, w)| (edited(b), w / n as f32)));
+                texels.extend(self.bilinear_texels_seen(p + offset.extend(0.0), level, wo).map(|(b, w, v)| (edited(b), w * v / n as f32)));
+            }
+            if l.view_tilt.is_some() {
+                normalize_weights(&mut texels);
             }
             shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
         };
@@ -513,3 +541,12 @@ pub fn render_with_progress(model: &HybridModel, camera: &Camera, lights: &[Ligh
     }
     Ok((image, stats))
 }
+
+/// Scales blend weights to sum to 1 (a blend whose weights are all zero is left so).
+fn normalize_weights(texels: &mut [(TexelBrdf, f32)]) {
+    let total: f32 = texels.iter().map(|t| t.1).sum();
+    if total > 0.0 {
+        texels.iter_mut().for_each(|t| t.1 /= total);
+    }
+}
+

@@ -158,9 +158,9 @@ const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
         let module = ShaderModule::embedded(device, "hybrid.comp")?;
-        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 13], vk::ShaderStageFlags::COMPUTE)?;
+        let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 13], vk::ShaderStageFlags::FRAGMENT)?;
+        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
         let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
         let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
@@ -192,8 +192,8 @@ impl HybridPass {
         let layout = GpuModel::new(model, periodic).map_err(CpuRenderError::Model)?;
         let mut buffers = Vec::new();
         let mut bytes = 0;
-        // Bindings 0..=6, then 12 (buffers[7]).
-        for (name, data) in layout.arrays().into_iter().chain([layout.transmission_array()]) {
+        // Bindings 0..=6, then 12 (buffers[7]) and 13 (buffers[8]).
+        for (name, data) in layout.arrays().into_iter().chain([layout.transmission_array(), layout.view_tilt_array()]) {
             bytes += data.len() as u64;
             buffers.push(Buffer::with_data(&self.device, name, &data, vk::BufferUsageFlags::STORAGE_BUFFER)?);
         }
@@ -319,7 +319,7 @@ impl HybridPass {
         // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
         let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
         let mut resources: Vec<Resource<'_>> = model.buffers[..7].iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7])]);
+        resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7]), Resource::Buffer(&model.buffers[8])]);
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
         let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
@@ -449,7 +449,7 @@ impl HybridPass {
         let stats = Buffer::new(dev, "hybrid stats", (STAT_WORDS * 4) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
         stats.write_mapped(&[0u8; STAT_WORDS * 4])?;
         let mut resources: Vec<Resource<'_>> = model.buffers[..7].iter().map(Resource::Buffer).collect();
-        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7])]);
+        resources.extend([Resource::Buffer(&param_buf), Resource::Buffer(&mask_buf), Resource::Buffer(&pixels), Resource::Buffer(&stats), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7]), Resource::Buffer(&model.buffers[8])]);
         let set = DescriptorSet::new(dev, &self.set_layout, &resources)?;
         let timestamps = Timestamps::new(dev, 2)?;
         dev.record_and_run("hybrid pass", |rec| {

@@ -52,6 +52,10 @@ pub enum ModelError {
     FlyawayLobeParam { level: usize, lobe: usize, field: &'static str, value: f32, range: &'static str },
     #[error("transmission of texel {texel}, level {level}: {field} = {value} is out of range ({range})")]
     TransmissionParam { level: usize, texel: usize, field: &'static str, value: f32, range: &'static str },
+    #[error("view tilt of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
+    ViewTiltParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
+    #[error("level 0 has a view tilt section; only coarse levels may (level 0 is seen through its own height field)")]
+    ViewTiltAtLevel0,
     #[error("texel ({i}, {j}) of level {level} uses cluster {index}, but the table has {len}")]
     ClusterIndex { level: usize, i: u32, j: u32, index: u32, len: usize },
     #[error("flyaway list of texel ({i}, {j}), level {level}: {link} points to node {index}, but there are {len}")]

@@ -69,7 +69,7 @@ pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f
             }
             Surface::PerTexel(table)
         };
-        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
+        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None });
     }
     let dims = [w, h, (tile.height_scale / tile.voxel_depth).round().max(1.0) as u32];
     let meta = example_meta(&tile, levels, dims);
@@ -129,7 +129,7 @@ pub fn sample_model() -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None });
     }
     let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
     let mut model = HybridModel { tile, height, levels, meta };
@@ -199,7 +199,7 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None });
     }
     // Level-0 flyaway voxels, then their downsampling.
     let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();
@@ -251,5 +251,25 @@ pub fn add_transmission(model: &mut HybridModel, t: &crate::brdf::ClothTransmiss
             })
             .collect();
         l.transmission = Some(records);
+    }
+}
+
+/// Gives every coarse level of `model` view tilts (format 1.4) that differ per texel:
+/// B = `strength` · (I + a small skew) and c = `strength` · (±1, ±½) in a checker of
+/// `cells` × `cells`, so that a renderer that ignores or misreads them shows it.
+pub fn add_view_tilts(model: &mut HybridModel, strength: f32, cells: u32) {
+    use crate::brdf::visible_normal::ViewTilt;
+    use crate::hybrid::PackedViewTilt;
+    for l in model.levels.iter_mut().skip(1) {
+        let (w, h) = (l.width, l.height);
+        let records = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
+                let s = if odd { 1.0 } else { -1.0 };
+                PackedViewTilt::new(&ViewTilt { b: [strength, 0.1 * strength * s, -0.05 * strength, 0.8 * strength], c: [strength * s, 0.5 * strength * s] })
+            })
+            .collect();
+        l.view_tilt = Some(records);
     }
 }

@@ -15,6 +15,7 @@
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
 //! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`) |
 //! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
+//! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
 //! Indices stored in the records stay as the file has them (local to their table or
 //! level); a level's `*_base` is added when they are followed. The height samples and
@@ -24,7 +25,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::flyaway::FlyawayNode;
-use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission};
+use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission, PackedViewTilt};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
 use crate::cpu::heightfield::HeightTracer;
@@ -75,7 +76,10 @@ pub struct GpuLevel {
     /// First transmission record of this level in `transmissions` (binding 12), or
     /// [`crate::hybrid::NO_NODE`] where the level has none.
     pub trans_base: u32,
-    pub pad: [u32; 2],
+    /// First view tilt record of this level in `view_tilts` (binding 13), or
+    /// [`crate::hybrid::NO_NODE`] where the level has none.
+    pub tilt_base: u32,
+    pub pad: [u32; 1],
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -127,6 +131,7 @@ pub struct GpuModel {
     pub fly_heads: Vec<u32>,
     pub fly_nodes: Vec<FlyawayNode>,
     pub transmissions: Vec<PackedTransmission>,
+    pub view_tilts: Vec<PackedViewTilt>,
 }
 
 impl GpuModel {
@@ -178,6 +183,7 @@ impl GpuModel {
             fly_heads: Vec::new(),
             fly_nodes: Vec::new(),
             transmissions: Vec::new(),
+            view_tilts: Vec::new(),
         };
         for (k, l) in model.levels.iter().enumerate() {
             let mut g = GpuLevel { dims: [l.width, l.height], header_base: out.headers.len() as u32, lobe_base: out.lobes.len() as u32, ..Default::default() };
@@ -216,9 +222,16 @@ impl GpuModel {
                 }
                 None => crate::hybrid::NO_NODE,
             };
+            g.tilt_base = match &l.view_tilt {
+                Some(t) => {
+                    out.view_tilts.extend_from_slice(t);
+                    (out.view_tilts.len() - t.len()) as u32
+                }
+                None => crate::hybrid::NO_NODE,
+            };
             out.header.levels[k] = g;
         }
-        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len())] {
+        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len()), ("view tilt records", out.view_tilts.len())] {
             if len >= u32::MAX as usize {
                 return Err(ModelError::Meta(format!("{len} {what}: more than the GPU layout's 32-bit indices reach")));
             }
@@ -246,9 +259,15 @@ impl GpuModel {
         ("transmission records", bytes(&self.transmissions, 24))
     }
 
+    /// Binding 13: the view tilt records of every coarse level that has them (one zero
+    /// record when none).
+    pub fn view_tilt_array(&self) -> (&'static str, Vec<u8>) {
+        ("view tilt records", bytes(&self.view_tilts, 12))
+    }
+
     /// Total bytes uploaded.
     pub fn byte_size(&self) -> u64 {
-        self.arrays().iter().map(|(_, b)| b.len() as u64).sum::<u64>() + self.transmission_array().1.len() as u64
+        self.arrays().iter().map(|(_, b)| b.len() as u64).sum::<u64>() + self.transmission_array().1.len() as u64 + self.view_tilt_array().1.len() as u64
     }
 }
 

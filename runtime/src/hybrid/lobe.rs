@@ -8,6 +8,7 @@
 //! | [`PackedLobe`]     | 16    | n (oct 2×snorm16), t (angle 16), k (3×f16), β, γ (f16)     |
 //! | [`ClusteredTexel`] | 8     | n (oct 2×snorm16), t (angle 16), cluster index (u16)       |
 //! | [`PackedTransmission`] | 24 | k_dt (3×f16), k_t (3×f16), β_t, γ_t, τ (f16), 3 reserved (format 1.3) |
+//! | [`PackedViewTilt`] | 12 | B, the visible normal's 2×2 slope matrix, row-major (4×f16); c, the log-visibility slope (2×f16) (format 1.4) |
 //!
 //! A table is a header array plus a lobe array; header h uses lobes
 //! `lobe_offset .. lobe_offset + lobe_count`. In cluster and flyaway tables the lobes'
@@ -18,6 +19,7 @@ use glam::Vec3;
 
 use super::error::{ModelError, TableKind};
 use super::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
+use crate::brdf::visible_normal::ViewTilt;
 use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothParams, ClothTransmission, ETA_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
 /// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
@@ -121,6 +123,43 @@ impl PackedTransmission {
     }
 }
 
+/// A coarse texel's view tilt (format 1.4): the 2×2 matrix B and the vector c of
+/// [`crate::brdf::visible_normal`], f16 bits. 12 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedViewTilt {
+    /// B, row-major.
+    pub b: [u16; 4],
+    pub c: [u16; 2],
+}
+
+/// Largest |B_ij| and |c_i| a file may hold (fitted values are ≲ 1 and ≲ 3).
+pub const VIEW_TILT_MAX: f32 = 8.0;
+
+impl PackedViewTilt {
+    pub fn new(t: &ViewTilt) -> PackedViewTilt {
+        let bits = |v: f32| f16_bits(if v.is_finite() { v.clamp(-VIEW_TILT_MAX, VIEW_TILT_MAX) } else { 0.0 });
+        PackedViewTilt { b: t.b.map(bits), c: t.c.map(bits) }
+    }
+
+    pub fn decode(&self) -> ViewTilt {
+        ViewTilt { b: self.b.map(f16_value), c: self.c.map(f16_value) }
+    }
+
+    /// Checks one record (texel `texel` of level `level`): finite, within ±[`VIEW_TILT_MAX`].
+    pub fn validate(&self, level: usize, texel: usize) -> Result<(), ModelError> {
+        let t = self.decode();
+        let fields = ["b00", "b01", "b10", "b11", "c0", "c1"];
+        for (field, v) in fields.into_iter().zip(t.b.into_iter().chain(t.c)) {
+            if !(v.is_finite() && v.abs() <= VIEW_TILT_MAX) {
+                return Err(ModelError::ViewTiltParam { level, texel, field, value: v, max: VIEW_TILT_MAX });
+            }
+        }
+        Ok(())
+    }
+}
+
+const _: () = assert!(core::mem::size_of::<PackedViewTilt>() == 12);
 const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 24);
 const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
 const _: () = assert!(core::mem::size_of::<PackedLobe>() == 16);

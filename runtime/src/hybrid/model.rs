@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::{ModelError, TableKind};
 use super::flyaway::Flyaways;
-use super::lobe::{BrdfTable, ClusteredTexel, PackedTransmission, TexelBrdf};
+use super::lobe::{BrdfTable, ClusteredTexel, PackedTransmission, PackedViewTilt, TexelBrdf};
 use super::packing::{unorm16, unorm16_value};
 use crate::brdf::BrdfReading;
 use crate::scene::Aabb;
@@ -137,6 +137,10 @@ pub struct Level {
     /// The transmission term per texel (x fastest), in each texel's lobe-0 frame: a
     /// BSDF model (format 1.3). `None`: nothing comes through from below the sheet.
     pub transmission: Option<Vec<PackedTransmission>>,
+    /// The view tilt per texel (x fastest) of a coarse level: its frames turn toward
+    /// the viewer as its footprint's visible normals do (format 1.4,
+    /// [`crate::brdf::visible_normal`]). `None`: the frames as stored (always at level 0).
+    pub view_tilt: Option<Vec<PackedViewTilt>>,
 }
 
 impl Level {
@@ -154,6 +158,16 @@ impl Level {
             b.transmission = t[index].decode();
         }
         b
+    }
+
+    /// Texel (i, j)'s view tilt (None without a tilt section).
+    pub fn view_tilt_at(&self, i: u32, j: u32) -> Option<crate::brdf::visible_normal::ViewTilt> {
+        self.view_tilt.as_ref().map(|v| v[(j * self.width + i) as usize].decode())
+    }
+
+    /// Bytes of the view tilt records in the file (0 without).
+    pub fn view_tilt_bytes(&self) -> u64 {
+        self.view_tilt.as_ref().map_or(0, |t| (t.len() * size_of::<PackedViewTilt>()) as u64)
     }
 
     /// Bytes of the transmission records in the file (0 without).
@@ -303,6 +317,17 @@ impl HybridModel {
             if let Some(t) = &l.transmission {
                 if t.len() as u64 != texels {
                     return Err(ModelError::Length { what: "transmission records", level, expected: texels, got: t.len() as u64 });
+                }
+                for (texel, r) in t.iter().enumerate() {
+                    r.validate(level, texel)?;
+                }
+            }
+            if let Some(t) = &l.view_tilt {
+                if level == 0 {
+                    return Err(ModelError::ViewTiltAtLevel0);
+                }
+                if t.len() as u64 != texels {
+                    return Err(ModelError::Length { what: "view tilt records", level, expected: texels, got: t.len() as u64 });
                 }
                 for (texel, r) in t.iter().enumerate() {
                     r.validate(level, texel)?;

@@ -71,13 +71,15 @@ pub struct LevelStats {
     pub flyaway_bytes: u64,
     /// Bytes of the transmission records (0: the level is reflection only).
     pub transmission_bytes: u64,
+    /// Bytes of the view tilt records (0: none, as at level 0).
+    pub view_tilt_bytes: u64,
     pub fit_error: Option<f32>,
     /// "WxH".
     pub resolution: String,
     /// Lobes per texel, mean and most (= lobes_per_texel's).
     pub mean_lobes: f64,
     pub max_lobes: u32,
-    /// Surface, flyaway and transmission bytes of the level.
+    /// Surface, flyaway, transmission and view tilt bytes of the level.
     pub bytes: u64,
 }
 
@@ -183,7 +185,8 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         st.mean_lobes = st.lobes_per_texel.mean;
         st.max_lobes = st.lobes_per_texel.max as u32;
         st.transmission_bytes = level.transmission_bytes();
-        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes;
+        st.view_tilt_bytes = level.view_tilt_bytes();
+        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes;
         levels.push(st);
     }
     let payload_bytes = height_bytes + levels.iter().map(|l| l.bytes).sum::<u64>();

@@ -38,6 +38,10 @@ pub struct PrefilterArgs {
     /// levels without shadow rays (format 1.2, MODEL flag bit 2).
     #[arg(long)]
     pub light_visibility: bool,
+    /// Leave coarse texels without a view tilt (their frames as fitted from every view;
+    /// baker/PREFILTER_MEASUREMENTS.md, "Grazing views", measures what the tilt buys).
+    #[arg(long)]
+    pub no_view_tilt: bool,
 }
 
 impl PrefilterArgs {
@@ -51,7 +55,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, seed, ..Default::default() })
     }
 }
 
@@ -125,6 +129,10 @@ pub fn print_report(r: &PrefilterReport) {
     let trans: Vec<String> = r.levels.iter().filter_map(|l| l.transmission_fit_error.map(|e| format!("{} {:.2}%", l.level, 100.0 * e))).collect();
     if !trans.is_empty() {
         println!("  transmission (BSDF), fit error per level: {}; 24 bytes per texel", trans.join(", "));
+    }
+    let tilt: Vec<String> = r.levels.iter().filter_map(|l| l.view_tilt_error.map(|(a, b)| format!("{} {:.1}->{:.1}%", l.level, 100.0 * a, 100.0 * b))).collect();
+    if !tilt.is_empty() {
+        println!("  view tilt, error against what distant views see, untilted->tilted per level: {}; 12 bytes per texel, {:.1} s", tilt.join(", "), r.view_tilt_seconds);
     }
     let share = if r.level0_bytes > 0 { 100.0 * r.chain_bytes as f64 / r.level0_bytes as f64 } else { 0.0 };
     println!("  coarse levels {} bytes = {share:.1}% of level 0's {} bytes; {:.1} s", r.chain_bytes, r.level0_bytes, r.seconds);

@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 3;
+pub const VERSION_MINOR: u16 = 4;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -73,12 +73,14 @@ pub enum SectionKind {
     FlyawayHeaders = 34,
     /// Per level: flyaway BRDF lobes.
     FlyawayLobes = 35,
-    /// Per level, optional (1.3): the transmission term per texel (16 bytes each).
+    /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
+    /// Per coarse level, optional (1.4): the view tilt per texel (8 bytes each).
+    ViewTilt = 49,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 11] = [
+    pub const ALL: [SectionKind; 12] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -90,6 +92,7 @@ impl SectionKind {
         SectionKind::FlyawayHeaders,
         SectionKind::FlyawayLobes,
         SectionKind::Transmission,
+        SectionKind::ViewTilt,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -114,6 +117,7 @@ impl SectionKind {
             SectionKind::FlyawayHeaders => "FLYAWAY_HEADERS",
             SectionKind::FlyawayLobes => "FLYAWAY_LOBES",
             SectionKind::Transmission => "TRANSMISSION",
+            SectionKind::ViewTilt => "VIEW_TILT",
         }
     }
 }

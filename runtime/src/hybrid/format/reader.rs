@@ -302,7 +302,11 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
             Some(_) => Some(s.array(SectionKind::Transmission, l)?),
             None => None,
         };
-        levels.push(Level { width, height, surface, flyaways, transmission });
+        let view_tilt = match s.get(SectionKind::ViewTilt, l) {
+            Some(_) => Some(s.array(SectionKind::ViewTilt, l)?),
+            None => None,
+        };
+        levels.push(Level { width, height, surface, flyaways, transmission, view_tilt });
     }
     let (source_bbox, source_dims, seed, fit_error, note) = match s.get(SectionKind::Meta, 0) {
         Some((index, data)) => parse_meta_section(index, data, mh.levels)?,

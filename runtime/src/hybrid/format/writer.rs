@@ -74,6 +74,9 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
         if let Some(t) = &l.transmission {
             out.push((SectionKind::Transmission, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
         }
+        if let Some(t) = &l.view_tilt {
+            out.push((SectionKind::ViewTilt, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
+        }
     }
     out
 }
