@@ -129,7 +129,7 @@ pub const REFINE_POLARS: [f32; 3] = [25.0, 50.0, 70.0];
 /// Azimuths per polar angle.
 pub const REFINE_AZIMUTHS: usize = 4;
 /// Nelder–Mead evaluations of a texel's refinement.
-const REFINE_EVALS: usize = 80;
+const REFINE_EVALS: usize = 40;
 
 /// What the distant views see of level 0: per view direction, the hits on each
 /// level-0 texel, and per coarse level the normal-based fit (the refinement's start).
