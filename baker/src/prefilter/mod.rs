@@ -191,7 +191,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
     let texel = model.texel_size();
     let t_tilt = Instant::now();
-    let mut tilts = opts.view_tilt.then(|| view_tilt::trace_visible_hits(model, count, opts.periodic));
+    let mut tilts = (opts.view_tilt && count > 1).then(|| view_tilt::trace_visible_hits(model, count, opts.periodic));
     report.view_tilt_seconds = t_tilt.elapsed().as_secs_f64();
     for level in 1..count {
         let t0 = Instant::now();
