@@ -4,7 +4,7 @@
 //
 // Twin: runtime/src/brdf/visible_normal.rs (same names, same order):
 //   sigma(n) = n.xy / n.z,  u(wo) = wo.xy / sqrt(wo.z),  sigma_vis = sigma(n_0) + B u,
-//   v(wo) = clamp(1 + c . u, 0, VISIBILITY_MAX).
+//   v(wo) = clamp(1 + c . u, VISIBILITY_MIN, VISIBILITY_MAX).
 #ifndef VISIBLE_NORMAL_GLSL
 #define VISIBLE_NORMAL_GLSL
 
@@ -12,6 +12,7 @@ const float TILT_VIEW_Z_MIN = 0.05;
 const float TILT_SLOPE_MAX = 1.0;
 const float TILT_NORMAL_Z_MIN = 0.1;
 const float VISIBILITY_MAX = 4.0;
+const float VISIBILITY_MIN = 0.05;
 
 struct ViewTilt {
     vec4 b;     // B row-major: b.x b.y; b.z b.w
@@ -48,7 +49,7 @@ vec3 rotate_arc(vec3 a, vec3 b, vec3 x) {
 
 float view_visibility(ViewTilt t, vec3 wo) {
     vec2 u = view_tilt_basis(wo);
-    return clamp(1.0 + t.c.x * u.x + t.c.y * u.y, 0.0, VISIBILITY_MAX);
+    return clamp(1.0 + t.c.x * u.x + t.c.y * u.y, VISIBILITY_MIN, VISIBILITY_MAX);
 }
 
 #endif // VISIBLE_NORMAL_GLSL

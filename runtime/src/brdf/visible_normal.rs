@@ -23,7 +23,7 @@
 //! normal each, their visibility is the height field's).
 //!
 //! The texel also stores how much of it is seen from ω_o, relative to a view from
-//! above: v(ω_o) = clamp(1 + c · u(ω_o), 0, [`VISIBILITY_MAX`]), the density of a
+//! above: v(ω_o) = clamp(1 + c · u(ω_o), [`VISIBILITY_MIN`], [`VISIBILITY_MAX`]), the density of a
 //! distant view's hits on it (a plane facet of slope σ has 1 + σ · ω_o.xy/ω_o.z). A hit
 //! shades the coarse texels around it (bilinear corners, anisotropic taps along the
 //! footprint) with weights w_k v_k / Σ w v: the taps sample texels wherever they lie,
@@ -43,6 +43,9 @@ pub const TILT_NORMAL_Z_MIN: f32 = 0.1;
 
 /// Largest v.
 pub const VISIBILITY_MAX: f32 = 4.0;
+/// Smallest v: a texel the fit says no distant view sees still counts a little, so that
+/// the weights of a blend never all vanish (the hit itself is seen).
+pub const VISIBILITY_MIN: f32 = 0.05;
 
 /// A coarse texel's view tilt: B (row-major: b[0] b[1]; b[2] b[3]) and c.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -51,11 +54,11 @@ pub struct ViewTilt {
     pub c: [f32; 2],
 }
 
-/// v(ω_o) = 1 + c · u(ω_o), clamped to [0, [`VISIBILITY_MAX`]].
+/// v(ω_o) = 1 + c · u(ω_o), clamped to [[`VISIBILITY_MIN`], [`VISIBILITY_MAX`]].
 #[inline]
 pub fn view_visibility(tilt: &ViewTilt, wo: Vec3) -> f32 {
     let u = view_tilt_basis(wo);
-    (1.0 + tilt.c[0] * u.x + tilt.c[1] * u.y).clamp(0.0, VISIBILITY_MAX)
+    (1.0 + tilt.c[0] * u.x + tilt.c[1] * u.y).clamp(VISIBILITY_MIN, VISIBILITY_MAX)
 }
 
 /// u(ω_o) = ω_o.xy / √ω_o.z (ω_o.z clamped below at [`TILT_VIEW_Z_MIN`]).
@@ -183,6 +186,6 @@ mod tests {
         let huge = ViewTilt { b: [0.0; 4], c: [1e4, 1e4] };
         let grazing = Vec3::new(1.0, 0.0, 1e-6).normalize();
         assert_eq!(view_visibility(&huge, grazing), VISIBILITY_MAX);
-        assert_eq!(view_visibility(&huge, -grazing.truncate().extend(grazing.z)), 0.0);
+        assert_eq!(view_visibility(&huge, -grazing.truncate().extend(grazing.z)), VISIBILITY_MIN);
     }
 }
