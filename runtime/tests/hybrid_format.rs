@@ -118,6 +118,16 @@ fn err(bytes: &[u8]) -> FormatError {
     }
 }
 
+/// Each case's edit applied to a fresh copy of `bytes` must give the error it expects.
+fn run_catalogue(bytes: &[u8], cases: Vec<(&str, fn(&mut Parts), Expect)>) {
+    for (name, edit, expect) in cases {
+        let mut parts = Parts::of(bytes);
+        edit(&mut parts);
+        let e = err(&parts.assemble());
+        assert!(expect(&e), "{name}: unexpected error {e:?}");
+    }
+}
+
 #[test]
 fn round_trip_is_exact_and_deterministic() {
     let m = sample();
@@ -163,12 +173,7 @@ fn transmission_corruption_catalogue() {
         ("not whole records", |p| p.find(SectionKind::Transmission, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "TRANSMISSION")),
         ("for a level that does not exist", |p| p.entry(SectionKind::Transmission, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
     ];
-    for (name, edit, expect) in cases {
-        let mut parts = Parts::of(&format::to_bytes(&bsdf_sample()).unwrap());
-        edit(&mut parts);
-        let e = err(&parts.assemble());
-        assert!(expect(&e), "{name}: unexpected error {e:?}");
-    }
+    run_catalogue(&format::to_bytes(&bsdf_sample()).unwrap(), cases);
 }
 
 #[test]
@@ -200,12 +205,7 @@ fn view_tilt_corruption_catalogue() {
         ("on level 0", |p| p.entry(SectionKind::ViewTilt, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltAtLevel0))),
         ("for a level that does not exist", |p| p.entry(SectionKind::ViewTilt, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
     ];
-    for (name, edit, expect) in cases {
-        let mut parts = Parts::of(&format::to_bytes(&tilted_sample()).unwrap());
-        edit(&mut parts);
-        let e = err(&parts.assemble());
-        assert!(expect(&e), "{name}: unexpected error {e:?}");
-    }
+    run_catalogue(&format::to_bytes(&tilted_sample()).unwrap(), cases);
 }
 
 #[test]
@@ -345,12 +345,7 @@ fn semantic_corruption_catalogue() {
         ("META NaN fit error", |p| p.find(SectionKind::Meta, 0)[48..52].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Meta(_)))),
         ("META note not UTF-8", |p| { let m = p.find(SectionKind::Meta, 0); let n = m.len(); m[n - 1] = 0xff }, |e| matches!(e, FormatError::Section { kind, .. } if kind == "META")),
     ];
-    for (name, edit, expect) in cases {
-        let mut parts = Parts::of(&sample_bytes());
-        edit(&mut parts);
-        let e = err(&parts.assemble());
-        assert!(expect(&e), "{name}: unexpected error {e:?}");
-    }
+    run_catalogue(&sample_bytes(), cases);
     // The sample's level-1 flyaways: column (1, 1) = texel 1·6 + 1 = 7 holds nodes 0 → 1.
     let m = sample();
     let f = m.levels[1].flyaways.as_ref().unwrap();

@@ -223,16 +223,21 @@ float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, uint k, o
 }
 
 // 1 / the sum of surface_texel's weights where a level with view tilts is read by
-// anisotropic taps (each tap weighted by its texel's visibility), else 1. Twin:
-// normalize_weights in Scene::shade_surface.
+// anisotropic taps (each tap weighted by its texel's visibility), else 1: the weights
+// alone (bilinear weight times v), no texel decoded. Twin: normalize_weights in
+// Scene::shade_surface.
 float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps) {
-    if (level == 0u || taps <= 1u || model.levels[level].tilt_base == NO_NODE) {
+    GpuLevel l = model.levels[level];
+    if (level == 0u || taps <= 1u || l.tilt_base == NO_NODE) {
         return 1.0;
     }
+    float n = float(taps);
     float total = 0.0;
     for (uint c = 0u; c < 4u * taps; ++c) {
-        TexelRef r;
-        total += surface_texel(level, p, wo, axis, taps, c, r);
+        vec2 offset = axis * ((float(c >> 2) + 0.5) / n - 0.5);
+        uvec2 ij;
+        float w = bilinear_texel(p + vec3(offset, 0.0), level, int(c & 3u), ij);
+        total += w * view_visibility(packed_view_tilt(l.tilt_base + ij.y * l.dims.x + ij.x), wo) / n;
     }
     return total > 0.0 ? 1.0 / total : 1.0;
 }
