@@ -88,6 +88,14 @@ void main() {
         uvec2 t = texel_at(e.a.xyz, e.level);
         o.x = vec4(float(ij.x), float(ij.y), w, 0.0);
         o.y = vec4(float(t.x), float(t.y), 0.0, 0.0);
+    } else if (e.kind == 8u) {
+        // axis_spread.glsl: a node's axes (u.x its tangent, u.y the record; u.z = 0: axes
+        // 0 and 1, else 2 and 3), the weights in z
+        SpreadAxes s = packed_spread_axes(octahedral_decode(e.u.x), e.u.y);
+        uint first = e.u.z == 0u ? 0u : 2u;
+        o.x = vec4(s.axes[first], 0.0);
+        o.y = vec4(s.axes[first + 1u], 0.0);
+        o.z = s.weights;
     } else if (e.kind == 7u) {
         // shading.glsl and flyaways.glsl scalars
         o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z), 0.0, 0.0);

@@ -6,7 +6,8 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level, `NODES=1` the flyaway nodes' responses at 70°.
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `NODES=1` the flyaway
+//! nodes' responses at 70°.
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, render};
@@ -45,6 +46,12 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let model = format::read_file(std::path::Path::new(&args[1])).expect("read the model");
     let pixels = args.get(2).map_or(16, |s| s.parse().unwrap());
+    if std::env::var("OPACITY_ONLY").is_ok() {
+        for polar in [0.0, 45.0, 70.0] {
+            opacity_by_level(&model, polar);
+        }
+        return;
+    }
     views(&model, pixels, "as it is     ");
     let mut bare = model.clone();
     for l in bare.levels.iter_mut() {

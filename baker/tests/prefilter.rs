@@ -115,6 +115,54 @@ fn flyaway_coverage_is_the_mean_over_the_positions_that_exist() {
 }
 
 #[test]
+fn a_coarse_voxel_reaching_below_the_surface_has_its_coverage_in_its_free_part() {
+    // The surface at depth 0.03: the level-1 voxel k = 1 spans depths [0.025, 0.05], of
+    // which a fifth is above it. One level-0 voxel of its 2×2 columns hides a quarter of
+    // the view, so over the free fifth its coverage is 1 − 0.75^5.
+    let mut m = uniform_model(2, 2, 1, flat_tile(8), |_, _| 0.03, &plain_params(), Vec3::Z, Vec3::X).unwrap();
+    add_flyaways(&mut m, 0, &[(1, 0, FlyawayInput { depth: 2, alpha: 1.0, tangent: Vec3::X, param: 0 })], &plain_params()).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let node = *out.levels[1].flyaways.as_ref().unwrap().list(0).next().unwrap();
+    assert_eq!(node.depth, 1);
+    let want = 1.0 - 0.75f32.powi(5);
+    assert!((node.alpha() - want).abs() < 2e-3, "{} against {want}", node.alpha());
+    // A ray down through the free part (where it stops) is as opaque as one through the
+    // whole depth was at the old coverage, whatever the voxel's edge.
+    use fabric_runtime::cpu::flyaways::flyaway_opacity;
+    for edge in [0.025, 0.29] {
+        let (through_free, through_all) = (flyaway_opacity(node.alpha(), 0.005, edge), flyaway_opacity(0.25, 0.025, edge));
+        assert!((through_free - through_all).abs() < 2e-3 * through_all.max(0.01), "{through_free} against {through_all}");
+    }
+}
+
+#[test]
+fn coarse_flyaways_store_their_fibres_spread_and_one_fibre_has_none() {
+    // Column (0, 0): two fibres 60° apart in one coarse voxel; column (1, 1): one fibre.
+    let mut m = uniform_model(4, 4, 1, flat_tile(8), |_, _| 0.1, &plain_params(), Vec3::Z, Vec3::X).unwrap();
+    let v = |i, j, t: Vec3| (i, j, FlyawayInput { depth: 0, alpha: 1.0, tangent: t, param: 0 });
+    let (a, b) = (Vec3::X, Vec3::new(0.5, 3f32.sqrt() / 2.0, 0.0));
+    add_flyaways(&mut m, 0, &[v(0, 0, a), v(1, 0, b), v(2, 2, Vec3::Y)], &plain_params()).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let f = out.levels[1].flyaways.as_ref().unwrap();
+    let spreads = f.spreads.as_ref().expect("spread records");
+    assert_eq!(spreads.len(), f.nodes.len());
+    let two = f.heads[0] as usize;
+    let axes = f.node_axes(two);
+    // The cone's two heavy axes are the two fibres (sin²30° = ¼ of spread, in their plane).
+    for t in [a, b] {
+        assert!(axes.axes.iter().zip(axes.weights).any(|(x, w)| w > 0.45 && x.dot(t).abs() > 0.995), "{t} not among {axes:?}");
+    }
+    let one = f.heads[3] as usize;
+    assert_eq!(f.node_axes(one).weights, [1.0, 0.0, 0.0, 0.0]);
+    // Without spreads: one axis per node, and the lobes of the two-fibre voxel widened.
+    let (plain, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_spread: false, ..Default::default() }, &NoProgress).unwrap();
+    let g = plain.levels[1].flyaways.as_ref().unwrap();
+    assert!(g.spreads.is_none());
+    let beta = |k: u32| g.table.brdf_in_frame(k as usize, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)).params.lobes[0].beta;
+    assert!(beta(g.nodes[g.heads[0] as usize].param) > beta(g.nodes[one].param) + 0.05);
+}
+
+#[test]
 fn level_choice_is_monotone_in_distance() {
     let m = synthetic_model(64, 3);
     let light = [Light::directional(Vec3::Z, Vec3::ONE)];

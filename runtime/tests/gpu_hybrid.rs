@@ -8,7 +8,7 @@
 
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
-use fabric_runtime::hybrid::{HybridModel, examples};
+use fabric_runtime::hybrid::{FlyawayInput, HybridModel, examples};
 use fabric_runtime::image::Image;
 use fabric_runtime::metrics::{flip, relative_rmse};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -465,6 +465,60 @@ fn view_tilts_match_the_cpu_twin_and_change_the_coarse_levels() {
     let near_opts = CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() };
     assert_eq!(render(&plain, &near, &lights, &near_opts).unwrap(), render(&tilted, &near, &lights, &near_opts).unwrap());
     let g = pass.upload(&tilted, true).unwrap();
+    let g0 = pass.upload(&plain, true).unwrap();
+    assert_eq!(pass.render(&g, &near, &lights, &near_opts, None).unwrap().image, pass.render(&g0, &near, &lights, &near_opts, None).unwrap().image);
+    assert_no_validation_errors(&device);
+}
+
+#[test]
+fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    // Dense coarse flyaways (the synthetic model's are sparse): every third column of
+    // levels 1–3, two layers, axes turning with position, all specular (no k_d) so that
+    // their axes show.
+    let mut plain = examples::synthetic_model(64, 5);
+    let shiny = fabric_runtime::brdf::ClothParams::new(Vec3::ZERO, 1.5, 0.5, &[fabric_runtime::brdf::ClothLobe { k: Vec3::new(3.0, 2.5, 2.0), beta: 0.15, gamma: 0.0 }]);
+    for level in 1..=3 {
+        let (w, h) = (plain.levels[level].width, plain.levels[level].height);
+        let s = plain.voxel_depth(level);
+        let m = &plain;
+        // The two voxels just above the surface's highest point in the column.
+        let above = |i: u32, j: u32| ((m.depth(i << level, j << level) / s).floor() as i32 - 2).max(0) as u16;
+        let voxels: Vec<(u32, u32, FlyawayInput)> = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .filter(|(i, j)| (i + 2 * j) % 3 == 0)
+            .flat_map(|(i, j)| (0..2u16).map(move |d| (i, j, FlyawayInput { depth: above(i, j) + d, alpha: 0.7 + 0.2 * d as f32, tangent: Vec3::new((i as f32 * 0.7).cos(), (j as f32 * 0.5).sin(), 0.3 * d as f32), param: 0 })))
+            .collect();
+        examples::add_flyaways(&mut plain, level, &voxels, &shiny).unwrap();
+    }
+    let mut spread = plain.clone();
+    examples::add_axis_spreads(&mut spread, 1.0);
+    assert!(spread.levels[1..].iter().any(|l| l.flyaways.as_ref().is_some_and(|f| f.spreads.is_some())));
+    let lights = [Light::directional(Vec3::new(-0.4, 0.3, 0.7), Vec3::ONE), Light::Point { position: Vec3::new(0.5, 0.2, 0.9), intensity: Vec3::splat(1.2) }];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let centre = Vec3::new(0.5, 0.5, 0.0);
+    let edits = fabric_runtime::cpu::Edits { tint: Vec3::new(1.0, 0.6, 0.3), roughness_scale: 1.4, tangent_rotation: 0.6, mask: None };
+    let cases = [
+        Case { name: "spread level 3, 60°", camera: Camera::orbit_orthographic(60.0, 30.0, centre, 40.0, 4.0, 32, 32), options: CpuRenderOptions { level: LevelChoice::Fixed(3), ..opts.clone() } },
+        Case { name: "spread level 1, 45°, edited", camera: Camera::orbit_orthographic(45.0, 200.0, centre, 40.0, 1.5, 32, 32), options: CpuRenderOptions { level: LevelChoice::Fixed(1), edits, ..opts.clone() } },
+        Case { name: "spread level 2, under the sky", camera: Camera::orbit_orthographic(35.0, 300.0, centre, 40.0, 2.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), env: Some(sky_light()), ..opts.clone() } },
+    ];
+    for case in &cases {
+        let (rmse, f, d, _, _) = compare(&pass, &spread, &lights, case);
+        // The same tolerances as gpu_matches_the_cpu_twin.
+        assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
+        // The spreads matter on these views (so the agreement above is about them).
+        let single = render(&plain, &case.camera, &lights, &case.options).unwrap();
+        let with = render(&spread, &case.camera, &lights, &case.options).unwrap();
+        let moved = relative_rmse(&with, &single).unwrap();
+        assert!(moved > 0.02, "{}: the spreads moved the image by only {moved}", case.name);
+    }
+    // Level 0 has no spreads: up close nothing changes on either backend.
+    let near = Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 48, height: 40 };
+    let near_opts = CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() };
+    assert_eq!(render(&plain, &near, &lights, &near_opts).unwrap(), render(&spread, &near, &lights, &near_opts).unwrap());
+    let g = pass.upload(&spread, true).unwrap();
     let g0 = pass.upload(&plain, true).unwrap();
     assert_eq!(pass.render(&g, &near, &lights, &near_opts, None).unwrap().image, pass.render(&g0, &near, &lights, &near_opts, None).unwrap().image);
     assert_no_validation_errors(&device);

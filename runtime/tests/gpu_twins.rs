@@ -2,7 +2,8 @@
 //! one, through `shaders/twin_eval.comp` on the local Vulkan device (lavapipe in CI), as
 //! `brdf_glsl.rs` does for the BRDF: packing (f16, snorm16, unorm16, octahedral and
 //! tangent-angle decoding), the height-field march and shadow rays, the flyaway march,
-//! a texel's response, the level choice, texel lookups and the scalars. Random and
+//! a texel's response, the level choice, texel lookups, the scalars and a coarse
+//! flyaway's spread axes. Random and
 //! extreme inputs (grazing rays, rays along texel lines, tiny step budgets) on a clamped
 //! and a periodic model.
 
@@ -15,8 +16,8 @@ use fabric_runtime::cpu::heightfield::{HeightTracer, HfTrace};
 use fabric_runtime::cpu::shading::{texel_response, volume_factor};
 use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, Scene};
 use fabric_runtime::hybrid::gpu_layout::{GpuModel, GpuRenderParams, LEVEL_AUTO};
-use fabric_runtime::hybrid::packing::{f16_bits, f16_value, octahedral_decode, snorm16_value, tangent_angle_decode, unorm16_value};
-use fabric_runtime::hybrid::{HybridModel, examples};
+use fabric_runtime::hybrid::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, snorm16_value, tangent_angle_decode, unorm16_value};
+use fabric_runtime::hybrid::{HybridModel, PackedAxisSpread, examples};
 use fabric_runtime::scene::Ray;
 use fabric_runtime::vk::{Buffer, CheckedDevice};
 
@@ -90,7 +91,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     let reading = model.meta.reading;
     let mut inputs = Vec::new();
     let per_kind = 4000;
-    for kind in 0..8u32 {
+    for kind in 0..9u32 {
         for k in 0..per_kind {
             let mut e = TwinInput { kind, ..Default::default() };
             match kind {
@@ -160,6 +161,13 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                     e.u[0] = (k % 4) as u32;
                     e.a = v4(o, 0.0);
                 }
+                8 => {
+                    // Any tangent code and record, weights summing past 1 included (clamped),
+                    // zero spreads (one axis) and axes on the z = 0 seam of the basis.
+                    let t = if k % 11 == 0 { octahedral_encode(Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)) } else { [rng.next_u64() as u16, rng.next_u64() as u16] };
+                    let record = if k % 13 == 0 { rng.next_u64() as u32 & 0xffff } else { rng.next_u64() as u32 };
+                    e.u = [t[0] as u32 | (t[1] as u32) << 16, record, (k % 2) as u32, 0];
+                }
                 _ => {
                     e.a = v4(rng.unit_vector(), 0.0);
                     e.b = v4(rng.unit_vector(), 0.0);
@@ -170,8 +178,8 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
         }
     }
     let out = evaluate(device, model, periodic, &inputs);
-    let mut mismatches = [0usize; 8];
-    let mut worst = [0f32; 8];
+    let mut mismatches = [0usize; 9];
+    let mut worst = [0f32; 9];
     // How many march inputs end in a hit, a step limit, a crossed flyaway: the test must
     // exercise each outcome, not agree on misses.
     let (mut hits, mut limits, mut crossed) = (0, 0, 0);
@@ -212,7 +220,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let f = model.levels[level].flyaways.as_ref().unwrap();
                 let grid = FlyawayGrid::new(model, level, periodic);
                 let (o, d) = (Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
-                let m = visit_flyaways(f, &grid, &Ray::new(o, d), e.a[3], e.b[3], e.u[0], |_, _, _| {});
+                let m = visit_flyaways(f, &grid, &Ray::new(o, d), e.a[3], e.b[3], e.u[0], |_, _, _, _| {});
                 crossed += (m.transmittance < 1.0) as usize;
                 if m.columns as f32 != gy.x || m.limited as u32 as f32 != gy.y { 1.0 } else { (m.transmittance - gx.w).abs() }
             }
@@ -237,6 +245,14 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let (ti, tj) = scene.texel_at(p, level);
                 if cb != gpu_texel || (ti as f32, tj as f32) != (gy.x, gy.y) { 1.0 } else { (cw - gx.z).abs() }
             }
+            8 => {
+                let node = fabric_runtime::hybrid::FlyawayNode { tangent: [e.u[0] as u16, (e.u[0] >> 16) as u16], ..Default::default() };
+                let record: PackedAxisSpread = bytemuck::cast(e.u[1]);
+                let s = record.axes(&node);
+                let first = if e.u[2] == 0 { 0 } else { 2 };
+                let axes = (s.axes[first] - gx.truncate()).abs().max_element().max((s.axes[first + 1] - gy.truncate()).abs().max_element());
+                axes.max((Vec4::from(s.weights) - gz).abs().max_element())
+            }
             _ => {
                 let vf = volume_factor(Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
                 let op = flyaway_opacity(e.c[0], e.c[1], e.c[2]);
@@ -252,15 +268,15 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     }
     println!("marches: {hits} hits and {limits} step limits of {per_kind} rays, {crossed} of {per_kind} flyaway marches cross a voxel");
     assert!(hits > per_kind / 4 && limits > 0 && crossed > per_kind / 4, "inputs too easy: {hits} hits, {limits} limits, {crossed} crossings");
-    let names = ["packing", "height-field march", "shadow rays", "flyaway march", "texel response", "level choice", "texel lookups", "scalars"];
-    for k in 0..8 {
+    let names = ["packing", "height-field march", "shadow rays", "flyaway march", "texel response", "level choice", "texel lookups", "scalars", "spread axes"];
+    for k in 0..9 {
         println!("{} tile, {}: {} of {per_kind} differ, worst agreeing error {:.1e}", if periodic { "periodic" } else { "clamped" }, names[k], mismatches[k], worst[k]);
     }
     // Exact kinds (integer decisions, table lookups, decodings of the same bits) may not
     // differ at all; the marches may take another branch where an ulp of the GPU's
     // arithmetic moves a crossing onto the other side of a leaf or column edge: measured
     // on lavapipe, see the printed counts; 0.5% allowed.
-    for k in [0, 4, 5, 6, 7] {
+    for k in [0, 4, 5, 6, 7, 8] {
         assert_eq!(mismatches[k], 0, "{}: {} mismatches", names[k], mismatches[k]);
     }
     for k in [1, 2, 3] {

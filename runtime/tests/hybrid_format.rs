@@ -28,6 +28,15 @@ fn tilted_sample() -> HybridModel {
     m
 }
 
+/// The sample with spread records on its coarse flyaways (format 1.5).
+fn spread_sample() -> HybridModel {
+    let mut m = sample();
+    examples::add_axis_spreads(&mut m, 1.0);
+    assert!(m.levels[1..].iter().any(|l| l.flyaways.as_ref().is_some_and(|f| f.spreads.is_some())), "the sample has coarse flyaways");
+    m.validate().expect("the spread sample is valid");
+    m
+}
+
 fn sample_bytes() -> Vec<u8> {
     format::to_bytes(&sample()).unwrap()
 }
@@ -206,6 +215,39 @@ fn view_tilt_corruption_catalogue() {
         ("for a level that does not exist", |p| p.entry(SectionKind::ViewTilt, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
     ];
     run_catalogue(&format::to_bytes(&tilted_sample()).unwrap(), cases);
+}
+
+#[test]
+fn flyaway_spreads_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = spread_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    // Optional: a 1.4 reader skips the section and shades each node with its one axis.
+    let mut parts = Parts::of(&bytes);
+    let mut skipped = 0;
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpread as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4002;
+        skipped += 1;
+    }
+    assert!(skipped > 0);
+    let plain = format::read(&parts.assemble()).unwrap();
+    assert_eq!(plain, sample());
+}
+
+#[test]
+fn flyaway_spread_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("weights past 1", |p| p.find(SectionKind::FlyawaySpread, 1)[2..4].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("sum past 1"))),
+        ("one record short", |p| { let t = p.find(SectionKind::FlyawaySpread, 1); t.truncate(t.len() - 4) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("one record too many", |p| p.find(SectionKind::FlyawaySpread, 1).extend_from_slice(&[0; 4]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::FlyawaySpread, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_SPREAD")),
+        ("moved to a level of another node count", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 0, .. }))),
+        ("on a level without flyaways", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
+        ("for a level that does not exist", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+    ];
+    run_catalogue(&format::to_bytes(&spread_sample()).unwrap(), cases);
 }
 
 #[test]
@@ -426,7 +468,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample())] {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample())] {
         let bytes = format::to_bytes(&model).unwrap();
         let path = dir.join(name);
         if std::env::var_os("FABRIC_BLESS").is_some() {

@@ -85,6 +85,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         float q_t[FLY_QUEUE];
         float q_w[FLY_QUEUE];
         uvec2 q_node[FLY_QUEUE];
+        uint q_spread[FLY_QUEUE];
         while (qn < FLY_QUEUE && !done) {
             if (!in_column) {
                 if (out_.columns >= max_columns) {
@@ -118,6 +119,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
             }
             if (node != NO_NODE && guard < l.fly_nodes) {
                 guard += 1u;
+                uint node_index = node;
                 uvec4 nd = fly_nodes[l.fly_node_base + node];
                 node = nd.x;
                 float top = float(nd.y & 0xffffu) * l.voxel_depth;
@@ -136,6 +138,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                     q_t[qn] = t_in;
                     q_w[qn] = out_.transmittance * opacity;
                     q_node[qn] = nd.zw;
+                    q_spread[qn] = l.spread_base == NO_NODE ? NO_NODE : fly_spread_word(l.spread_base + node_index);
                     qn += 1u;
                     out_.transmittance *= 1.0 - opacity;
                     if (out_.transmittance < MIN_TRANSMITTANCE) {
@@ -173,8 +176,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's closure
         // in Scene::march_level_flyaways).
         for (uint i = 0u; i < qn; ++i) {
-            TexelRef b = in_fiber_frame(level, q_node[i].y, octahedral_decode(q_node[i].x), -d);
-            out_.radiance += q_w[i] * shade(b, o + q_t[i] * d, -d, true, false, shadow_limited);
+            out_.radiance += q_w[i] * shade_fiber(level, q_node[i].y, octahedral_decode(q_node[i].x), q_spread[i], o + q_t[i] * d, -d, shadow_limited);
         }
     }
     return out_;

@@ -44,7 +44,7 @@ struct GpuLevel {
     float fly_edge;
     uint trans_base;    // first transmission record (binding 12), NO_NODE: none
     uint tilt_base;     // first view tilt record (binding 13), NO_NODE: none
-    uint pad2;
+    uint spread_base;   // first flyaway spread word in binding 6 (after the nodes), NO_NODE: none
 };
 
 struct GpuQuadLevel {
@@ -77,6 +77,11 @@ layout(std430, set = 0, binding = 3) readonly buffer LobeBlock { uvec4 brdf_lobe
 layout(std430, set = 0, binding = 4) readonly buffer TexelBlock { uvec2 clustered_texels[]; };
 layout(std430, set = 0, binding = 5) readonly buffer HeadBlock { uint fly_heads[]; };
 layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes[]; };
+
+// Word w of binding 6: the flyaway spread records follow the nodes, four per element.
+uint fly_spread_word(uint w) {
+    return fly_nodes[w >> 2][w & 3u];
+}
 // PackedTransmission records of every BSDF level, 24 bytes = 3 uvec2 each (format 1.3;
 // one zero record when none).
 layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec2 transmissions[]; };

@@ -16,6 +16,7 @@
 #include "common/heightfield.glsl"
 #include "common/render_params.glsl"
 #include "common/lights.glsl"
+#include "common/axis_spread.glsl"
 
 const float VOLUME_MU_MIN = 0.1;
 
@@ -198,6 +199,54 @@ vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout ui
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
         radiance += texel_env_response(b, e, false, wo, reading, volumetric, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
+    }
+#endif
+    return radiance;
+}
+
+// Radiance leaving p toward wo from flyaway node (param, fiber) of `level`: one axis
+// where `spread` is NO_NODE or weighs it 1, else the mean over the node's spread axes
+// (axis_spread.glsl), each light's visibility once. Twin: the node closure of
+// Scene::march_level_flyaways.
+vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 wo, inout uint limited) {
+    if (spread == NO_NODE) {
+        return shade(in_fiber_frame(level, param, fiber, wo), p, wo, true, false, limited);
+    }
+    SpreadAxes s = packed_spread_axes(fiber, spread);
+    if (s.weights.x >= 1.0) {
+        return shade(in_fiber_frame(level, param, s.axes[0], wo), p, wo, true, false, limited);
+    }
+    uint reading = model_reading();
+    Edit e = hit_edit(p);
+    vec3 radiance = vec3(0.0);
+    for (uint k = 0u; k < LIGHT_COUNT; ++k) {
+        vec3 wi;
+        float dist;
+        vec3 irradiance = light_at(k, p, wi, dist);
+        if (max3(irradiance) <= 0.0) {
+            continue;
+        }
+        if (wi.z < 0.0) {
+            continue;
+        }
+        vec3 response = vec3(0.0);
+        for (int a = 0; a < 4; ++a) {
+            if (s.weights[a] > 0.0) {
+                response += s.weights[a] * texel_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wi, wo, reading);
+            }
+        }
+        if (max3(response) <= 0.0) {
+            continue;
+        }
+        radiance += irradiance * response * light_factor(p, wi, dist, wo, true, false, limited);
+    }
+#ifdef HYBRID_ENV
+    if (HAS_ENV) {
+        for (int a = 0; a < 4; ++a) {
+            if (s.weights[a] > 0.0) {
+                radiance += s.weights[a] * texel_env_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wo, reading, false, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
+            }
+        }
     }
 #endif
     return radiance;

@@ -8,21 +8,37 @@
 //! (Σ α₀ / (n_x n_y n_z), the first reading) makes a thin fibre crossing a
 //! coarse voxel nearly transparent — one filled voxel of 8 gives α = 1/8 where it hides
 //! 1/4 of the view — and measured 9.7% against 1.4% without flyaways on a far view of
-//! twill (baker/PREFILTER_MEASUREMENTS.md); [`Coverage::Volume`] keeps it. Its axis is the principal axis of the α-weighted Σ t tᵀ
-//! (axes, never averaged as vectors). Its BRDF is the BRDF of the flyaway cluster with
-//! the most coverage inside it, with each lobe widened by the spread of the merged axes:
-//! β'² = β² + 2σ², σ² = 1 − eᵀ T e the α-weighted mean squared sine between the axes and
-//! the principal one (the same moment rule as the surface lobes, `lobe_fit::moments`);
-//! σ² is quantized to [`SPREAD_BINS`] steps so that a level's table stays small (one
-//! entry per cluster and step in use). Renderers composite coarse voxels with the
-//! path-length opacity 1 − (1 − α)^(ℓ/s) (`cpu::flyaways`).
+//! twill (baker/PREFILTER_MEASUREMENTS.md); [`Coverage::Volume`] keeps it.
+//!
+//! **Free space.** A ray stops at the surface, and a coarse voxel often reaches below it
+//! (at satin's level 1 half of them, a mean 27% of their depth; at level 3 all, 55%):
+//! only the part above is ever crossed. Its fibres all lie in that part, so α is the
+//! coverage of the free depth: α' = 1 − (1 − α)^(1/f), f the mean free fraction of its
+//! columns. Without it the coarse flyaways' opacity fell with the level (satin at 70°:
+//! 0.44 at level 0, 0.33 at level 3, 0.23 at level 5); with it every level is within
+//! 0.43 ± 0.02.
+//!
+//! Its axis is the principal axis of the α-weighted axis tensor T = Σ α t tᵀ / Σ α (axes,
+//! never averaged as vectors), and the node stores the spread of T about it
+//! (`FLYAWAY_SPREAD`, format 1.5): renderers shade it as four axes on a cone with T's
+//! second moment (`brdf::axis_spread`), which brings a node's response to within a few
+//! percent of the mean of the level-0 nodes it merges at 45° (one merged axis: 0.5–0.9
+//! of it; a lit fibre among unlit ones is all or nothing). Its BRDF is that of the
+//! flyaway cluster with the most coverage inside it. Without spread records
+//! (`PrefilterOptions::flyaway_spread` off) each lobe is widened by the spread instead:
+//! β'² = β² + 2σ², σ² = 1 − eᵀ T e (the moment rule of the surface lobes,
+//! `lobe_fit::moments`), σ² quantized to [`SPREAD_BINS`] steps so that a level's table
+//! stays small (one entry per cluster and step in use). Renderers composite coarse voxels
+//! with the path-length opacity 1 − (1 − α)^(ℓ/s) (`cpu::flyaways`).
 
 use std::collections::BTreeMap;
 
 use glam::{Mat3, Vec3};
 
 use fabric_runtime::brdf::{BETA_MAX, ClothLobe, ClothParams};
-use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError, level_dims};
+use fabric_runtime::brdf::axis_spread::spread_basis;
+use fabric_runtime::hybrid::packing::{octahedral_decode, octahedral_encode};
+use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError, PackedAxisSpread, level_dims};
 
 use crate::geometry::tangents::principal_axis;
 
@@ -41,7 +57,7 @@ pub enum Coverage {
 }
 
 /// What a coarse voxel accumulates.
-#[derive(Clone, Default)]
+#[derive(Clone)]
 struct Cell {
     alpha: f32,
     /// Per level-0 column (i, j): the transmittance through its voxels in this cell.
@@ -49,6 +65,14 @@ struct Cell {
     tensor: Mat3,
     /// Coverage per level-0 cluster.
     by_param: Vec<(u32, f32)>,
+}
+
+// Not derived: glam's Mat3::default() is the identity, which would add 1/Σα to every
+// eigenvalue of the axis tensor.
+impl Default for Cell {
+    fn default() -> Cell {
+        Cell { alpha: 0.0, columns: BTreeMap::new(), tensor: Mat3::ZERO, by_param: Vec::new() }
+    }
 }
 
 impl Cell {
@@ -74,9 +98,9 @@ fn widened(base: &ClothParams, bin: u32) -> ClothParams {
     p
 }
 
-/// The flyaway lists of level `level` ≥ 1, merged from level 0's; `None` when level 0
-/// has none.
-pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage) -> Result<Option<Flyaways>, ModelError> {
+/// The flyaway lists of level `level` ≥ 1, merged from level 0's, with spread records
+/// where `spread` (else widened lobes); `None` when level 0 has none.
+pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spread: bool) -> Result<Option<Flyaways>, ModelError> {
     let Some(f0) = model.levels[0].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) else {
         return Ok(None);
     };
@@ -97,21 +121,123 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage) -> R
     let mut table = BrdfTable::new();
     let mut entries: BTreeMap<(u32, u32), u32> = BTreeMap::new();
     let mut columns: BTreeMap<(u32, u32), Vec<FlyawayInput>> = BTreeMap::new();
+    let mut spreads: BTreeMap<(u32, u32, u16), PackedAxisSpread> = BTreeMap::new();
     for (&(j, i, k), cell) in &cells {
         let alpha = match coverage {
             Coverage::Volume => cell.alpha / (extent(i, w0) * extent(j, h0) * extent(k, depth0)) as f32,
             Coverage::Projected => cell.columns.values().map(|t| 1.0 - t).sum::<f32>() / (extent(i, w0) * extent(j, h0)) as f32,
         };
-        let alpha = alpha.clamp(2.0 / 65535.0, 1.0);
+        let alpha = free_space_alpha(alpha, free_fraction(model, level, i, j, k)).clamp(2.0 / 65535.0, 1.0);
         let tensor = cell.tensor * (1.0 / cell.alpha.max(1e-30));
         let axis = principal_axis(tensor).unwrap_or(Vec3::X);
-        let spread = (1.0 - axis.dot(tensor * axis)).clamp(0.0, SPREAD_MAX);
-        let bin = ((spread / SPREAD_MAX) * (SPREAD_BINS - 1) as f32).round() as u32;
+        // With spread records the cone carries the spread: no widening.
+        let sigma2 = if spread { 0.0 } else { (1.0 - axis.dot(tensor * axis)).clamp(0.0, SPREAD_MAX) };
+        let bin = ((sigma2 / SPREAD_MAX) * (SPREAD_BINS - 1) as f32).round() as u32;
         let param = cell.by_param.iter().fold((0u32, -1.0f32), |b, s| if s.1 > b.1 { *s } else { b }).0;
         let param = (param as usize).min(base.len() - 1) as u32;
         let entry = *entries.entry((param, bin)).or_insert_with(|| table.push(&widened(&base[param as usize], bin)));
         let depth = u16::try_from(k).map_err(|_| ModelError::FlyawayNode { level, node: 0, why: format!("depth index {k} does not fit 16 bits") })?;
+        if spread {
+            spreads.insert((i, j, depth), axis_spread(tensor, axis));
+        }
         columns.entry((i, j)).or_default().push(FlyawayInput { depth, alpha, tangent: axis, param: entry });
     }
-    Flyaways::from_columns(lw, lh, table, |i, j| columns.remove(&(i, j)).unwrap_or_default()).map(Some)
+    let mut f = Flyaways::from_columns(lw, lh, table, |i, j| columns.remove(&(i, j)).unwrap_or_default())?;
+    if spread {
+        let mut records = vec![PackedAxisSpread::default(); f.nodes.len()];
+        for j in 0..lh {
+            for i in 0..lw {
+                for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                    records[index] = spreads[&(i, j, node.depth)];
+                }
+            }
+        }
+        f.spreads = Some(records);
+    }
+    Ok(Some(f))
+}
+
+/// The part of coarse voxel (i, j, k) of `level` above the height field: the mean over
+/// the level-0 columns of its footprint of the fraction of its depth range
+/// [k s_ℓ, (k+1) s_ℓ] that lies above the surface. A ray stops at the surface, so only
+/// that part is ever crossed.
+fn free_fraction(model: &HybridModel, level: usize, i: u32, j: u32, k: u32) -> f32 {
+    let s = model.voxel_depth(level);
+    let top = k as f32 * s;
+    let (w0, h0) = (model.width(), model.height_px());
+    let (mut sum, mut n) = (0.0f32, 0u32);
+    for jj in (j << level)..((j + 1) << level).min(h0) {
+        for ii in (i << level)..((i + 1) << level).min(w0) {
+            sum += ((model.depth(ii, jj) - top) / s).clamp(0.0, 1.0);
+            n += 1;
+        }
+    }
+    if n == 0 { 1.0 } else { sum / n as f32 }
+}
+
+/// The coverage of a voxel whose free part (fraction `free` of its depth) holds all of
+/// its fibers: the density that gives coverage `alpha` over the free depth,
+/// 1 − (1 − α)^(1/f) (α = 1 stays opaque; below 1 it stays below 1, so that a short
+/// path through the voxel stays partly transparent).
+fn free_space_alpha(alpha: f32, free: f32) -> f32 {
+    if alpha >= 1.0 || !(free > 0.0) {
+        return alpha;
+    }
+    let f = free.max(1e-3);
+    (1.0 - (1.0 - alpha).powf(1.0 / f)).min(65534.0 / 65535.0)
+}
+
+/// The spread record of a voxel of axis tensor `tensor` (trace 1) and merged axis
+/// `axis`: the eigen-axes of the tensor in the plane ⊥ the axis *as stored* (the
+/// renderer rebuilds the others from the decoded tangent), in closed form for 2×2.
+fn axis_spread(tensor: Mat3, axis: Vec3) -> PackedAxisSpread {
+    let e1 = octahedral_decode(octahedral_encode(axis));
+    let (r, q) = spread_basis(e1);
+    let (a, b, c) = (r.dot(tensor * r), r.dot(tensor * q), q.dot(tensor * q));
+    let mid = 0.5 * (a + c);
+    let half = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let roll = 0.5 * (2.0 * b).atan2(a - c);
+    PackedAxisSpread::new(roll, (mid + half).max(0.0), (mid - half).max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tensor_of(axes: &[(Vec3, f32)]) -> Mat3 {
+        let total: f32 = axes.iter().map(|a| a.1).sum();
+        axes.iter().fold(Mat3::ZERO, |m, (t, w)| {
+            let t = t.normalize();
+            m + Mat3::from_cols(t * t.x, t * t.y, t * t.z) * (*w / total)
+        })
+    }
+
+    #[test]
+    fn a_cell_starts_empty() {
+        // glam's Mat3::default() is the identity: a cell's tensor must start at zero.
+        let mut c = Cell::default();
+        c.add(0.5, Vec3::X, 0, (0, 0));
+        assert_eq!(c.tensor * (1.0 / c.alpha), Mat3::from_cols(Vec3::X, Vec3::ZERO, Vec3::ZERO));
+    }
+
+    #[test]
+    fn one_fibre_has_no_spread_and_two_keep_their_plane() {
+        let t = Vec3::new(0.11, 0.99, -0.01).normalize();
+        let s = axis_spread(tensor_of(&[(t, 1.0)]), t);
+        assert!(s.lambda[0] <= 1 && s.lambda[1] <= 1, "{s:?}");
+        // Two fibres 30° apart in the plane of t and x̂: one axis between them, spread
+        // sin²15° along the plane's other direction.
+        let (a, b) = (Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.5, 3f32.sqrt() / 2.0, 0.0));
+        let tensor = tensor_of(&[(a, 1.0), (b, 1.0)]);
+        let axis = principal_axis(tensor).unwrap();
+        let s = axis_spread(tensor, axis);
+        let (l2, l3) = s.lambdas();
+        assert!((l2 - 15f32.to_radians().sin().powi(2)).abs() < 2.0 / 255.0 && l3 < 1.0 / 255.0, "{l2} {l3}");
+        let node = fabric_runtime::hybrid::FlyawayNode { tangent: octahedral_encode(axis), ..Default::default() };
+        let axes = s.axes(&node);
+        // The cone's two heavy axes are the fibres.
+        for t in [a, b] {
+            assert!(axes.axes[..2].iter().any(|x| x.dot(t).abs() > 0.999), "{t} not in {:?}", axes.axes);
+        }
+    }
 }

@@ -63,6 +63,9 @@ pub struct PrefilterOptions {
     pub flyaways: bool,
     /// How a coarse flyaway voxel's α is computed.
     pub coverage: flyaways::Coverage,
+    /// Store the spread of each coarse flyaway voxel's fibre axes (shaded as a cone of
+    /// axes, `brdf::axis_spread`); off: one axis with widened lobes.
+    pub flyaway_spread: bool,
     /// Weight each level-0 texel by its visible projected area toward ω_o (what a far
     /// pixel sees of it) rather than equally.
     pub masking: bool,
@@ -82,7 +85,7 @@ pub struct PrefilterOptions {
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, seed: 1 }
     }
 }
 
@@ -288,7 +291,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let fit_error = errors.iter().sum::<f64>() / n;
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
-        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage).map_err(PrefilterError::Output)? } else { None };
+        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread).map_err(PrefilterError::Output)? } else { None };
         let transmission_fit_error = bsdf.then(|| trans_error / n);
         let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None };
         let t_level = Instant::now();

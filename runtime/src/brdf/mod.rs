@@ -57,6 +57,7 @@
 // as the GLSL `min(max(x, lo), hi)`; `!(x > 0.0)` is the NaN-aware test, as in the GLSL.
 #![allow(clippy::manual_clamp, clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod axis_spread;
 pub mod twin;
 pub mod visible_normal;
 

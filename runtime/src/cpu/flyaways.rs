@@ -100,20 +100,20 @@ struct AxisCursor {
 }
 
 /// Marches `ray` (unit direction, heading down) through the flyaway lists `f` of grid `g`
-/// over [t_start, t_end], calling `shade(node, t_in)` for the radiance of each node it
-/// crosses (at its entry point), compositing front to back.
-pub fn march_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut shade: impl FnMut(&FlyawayNode, f32) -> Vec3) -> FlyawayMarch {
+/// over [t_start, t_end], calling `shade(index, node, t_in)` for the radiance of each
+/// node it crosses (at its entry point; `index` in `f.nodes`), compositing front to back.
+pub fn march_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut shade: impl FnMut(usize, &FlyawayNode, f32) -> Vec3) -> FlyawayMarch {
     let mut radiance = Vec3::ZERO;
-    let mut out = visit_flyaways(f, g, ray, t_start, t_end, max_columns, |node, t_in, weight| radiance += weight * shade(node, t_in));
+    let mut out = visit_flyaways(f, g, ray, t_start, t_end, max_columns, |index, node, t_in, weight| radiance += weight * shade(index, node, t_in));
     out.radiance = radiance;
     out
 }
 
-/// The march of [`march_flyaways`], calling `visit(node, t_in, weight)` for each node
+/// The march of [`march_flyaways`], calling `visit(index, node, t_in, weight)` for each node
 /// crossed, `weight` = (transmittance in front of it) · (its opacity): the factor its
 /// radiance enters the pixel with. The returned march's `radiance` is zero. The baker's
 /// flyaway fit uses the weights directly (the pixel is linear in each node's BRDF).
-pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut visit: impl FnMut(&FlyawayNode, f32, f32)) -> FlyawayMarch {
+pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_end: f32, max_columns: u32, mut visit: impl FnMut(usize, &FlyawayNode, f32, f32)) -> FlyawayMarch {
     let mut out = FlyawayMarch { radiance: Vec3::ZERO, transmittance: 1.0, columns: 0, limited: false };
     if t_end.is_nan() || t_end <= t_start || ray.d.z >= 0.0 {
         return out;
@@ -166,7 +166,7 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
         let t_next = exits[0].min(exits[1]).min(t_end).max(t);
         let column = (cursor[1].k * g.dims[0] + cursor[0].k) as usize;
         let (d_in, d_out) = (depth_at(t), depth_at(t_next));
-        for node in f.list(column) {
+        for (index, node) in f.list(column).with_index() {
             let top = node.depth as f32 * g.voxel_depth;
             let bottom = top + g.voxel_depth;
             if bottom <= d_in {
@@ -179,7 +179,7 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
             let t_out = t_next.min(t_at_depth(bottom));
             let opacity = flyaway_opacity(node.alpha(), t_out - t_in, g.edge);
             if opacity > 0.0 {
-                visit(node, t_in, out.transmittance * opacity);
+                visit(index, node, t_in, out.transmittance * opacity);
                 out.transmittance *= 1.0 - opacity;
                 if out.transmittance < MIN_TRANSMITTANCE {
                     out.transmittance = 0.0;

@@ -79,7 +79,7 @@ impl Scene<'_> {
         let visibility = |p: Vec3, limited: &mut u32| self.lights.first().map_or(1.0, |l| self.visibility(p, &l.sample(p), limited));
         let mut transmittance = 1.0;
         if flyaways && let Some(f) = self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
-            let march = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in, weight| {
+            let march = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |_, node, t_in, weight| {
                 let point = ray.at(t_in);
                 out.flyaways.push(FlyawayHit { param: node.param, fiber: node.tangent(), point, weight, visibility: visibility(point, &mut limited) });
             });

@@ -371,11 +371,22 @@ impl<'a> Scene<'a> {
         }
         if let Some(f) = self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
             let mut shadow_limited = 0u32;
-            let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |node, t_in| {
+            let march = march_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |index, node, t_in| {
                 let p = ray.at(t_in);
-                let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X)), node.tangent(), wo);
-                let b = if self.edited { self.edit_at(p).apply(b, false) } else { b };
-                shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, EnvBudget::FLYAWAY)
+                let brdf = f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X));
+                let fiber = |axis: Vec3| {
+                    let b = in_fiber_frame(brdf, axis, wo);
+                    if self.edited { self.edit_at(p).apply(b, false) } else { b }
+                };
+                let axes = f.node_axes(index);
+                if axes.weights[0] >= 1.0 {
+                    let b = fiber(axes.axes[0]);
+                    return shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, EnvBudget::FLYAWAY);
+                }
+                // A coarse node's spread axes (brdf::axis_spread): their mean response,
+                // each light's visibility once.
+                let texels: Vec<(TexelBrdf, f32)> = (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| (fiber(axes.axes[k]), axes.weights[k])).collect();
+                shade_blend(&texels, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, EnvBudget::FLYAWAY)).sum::<Vec3>()
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }

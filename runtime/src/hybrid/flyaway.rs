@@ -10,7 +10,8 @@
 //! exactly one list. A node is 16 bytes: next, depth, alpha (the fraction of filled
 //! children at coarse levels, 1 at level 0), the fiber axis ω_f (shading frame of
 //! DESIGN.md §5: t = ω_f, n = ω_o made perpendicular to t) and an index into the
-//! level's flyaway BRDF table.
+//! level's flyaway BRDF table. A coarse level may also give each node the spread of its
+//! level-0 axes ([`PackedAxisSpread`], format 1.5; `brdf::axis_spread`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -50,6 +51,48 @@ impl FlyawayNode {
     }
 }
 
+/// The spread of a coarse node's axes (`brdf::axis_spread`): the roll θ of its axis
+/// tensor's second eigen-axis about the node's tangent, unorm16 over [0, π), and the weights λ₂, λ₃ of the
+/// second and third, unorm8 each (λ₂ + λ₃ ≤ 1; the tangent has 1 − λ₂ − λ₃). 4 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedAxisSpread {
+    pub roll: u16,
+    pub lambda: [u8; 2],
+}
+
+const _: () = assert!(core::mem::size_of::<PackedAxisSpread>() == 4);
+
+impl PackedAxisSpread {
+    /// Packs roll θ (any angle; taken mod π) and weights λ₂, λ₃ (clamped to [0, 1],
+    /// λ₃ lowered until the sum is ≤ 1 after rounding).
+    pub fn new(roll: f32, lambda2: f32, lambda3: f32) -> PackedAxisSpread {
+        let pi = std::f32::consts::PI;
+        let theta = if roll.is_finite() { roll.rem_euclid(pi) } else { 0.0 };
+        let code = ((theta / pi) * 65536.0).round().min(65535.0) as u16;
+        let unorm8 = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 };
+        let l2 = unorm8(lambda2);
+        let l3 = unorm8(lambda3).min(255 - l2);
+        PackedAxisSpread { roll: code, lambda: [l2, l3] }
+    }
+
+    /// θ ∈ [0, π).
+    pub fn roll(&self) -> f32 {
+        self.roll as f32 * (std::f32::consts::PI / 65536.0)
+    }
+
+    /// λ₂, λ₃.
+    pub fn lambdas(&self) -> (f32, f32) {
+        (self.lambda[0] as f32 * (1.0 / 255.0), self.lambda[1] as f32 * (1.0 / 255.0))
+    }
+
+    /// The three axes of `node`'s record, with their weights.
+    pub fn axes(&self, node: &FlyawayNode) -> crate::brdf::axis_spread::SpreadAxes {
+        let (l2, l3) = self.lambdas();
+        crate::brdf::axis_spread::spread_axes(node.tangent(), self.roll(), l2, l3)
+    }
+}
+
 /// A flyaway voxel as a baker or a test describes it (the builder's input).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FlyawayInput {
@@ -71,6 +114,9 @@ pub struct Flyaways {
     pub nodes: Vec<FlyawayNode>,
     /// The BRDFs the nodes index (lobe frames unused: the fiber frame is used).
     pub table: BrdfTable,
+    /// One record per node (in `nodes`' order) where the level stores its axes' spread
+    /// (the optional `FLYAWAY_SPREAD` section); `None`: each node is one axis.
+    pub spreads: Option<Vec<PackedAxisSpread>>,
 }
 
 impl FlyawayInput {
@@ -106,7 +152,7 @@ impl Flyaways {
                 }
             }
         }
-        Ok(Flyaways { heads, nodes, table })
+        Ok(Flyaways { heads, nodes, table, spreads: None })
     }
 
     /// The list of texel `index` (= j·width + i), top down. Stops after `nodes.len()`
@@ -160,12 +206,32 @@ impl Flyaways {
         if let Some(node) = seen.iter().position(|s| !s) {
             return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
         }
+        if let Some(spreads) = &self.spreads {
+            if spreads.len() != len {
+                return Err(ModelError::Length { what: "flyaway spread records", level, expected: len as u64, got: spreads.len() as u64 });
+            }
+            if let Some(node) = spreads.iter().position(|s| s.lambda[0] as u32 + s.lambda[1] as u32 > 255) {
+                let s = spreads[node];
+                return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("spread weights λ₂ = {}/255 and λ₃ = {}/255 sum past 1", s.lambda[0], s.lambda[1]) });
+            }
+        }
         Ok(())
     }
 
-    /// Bytes these lists take in the file (heads, nodes, table).
+    /// Bytes these lists take in the file (heads, nodes, spread records, table).
     pub fn byte_size(&self) -> u64 {
-        (self.heads.len() * 4 + self.nodes.len() * size_of::<FlyawayNode>()) as u64 + self.table.byte_size()
+        let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * size_of::<PackedAxisSpread>());
+        (self.heads.len() * 4 + self.nodes.len() * size_of::<FlyawayNode>() + spreads) as u64 + self.table.byte_size()
+    }
+
+    /// The node at `index` and its axes (one axis, weight 1, where the level has no
+    /// spread records).
+    pub fn node_axes(&self, index: usize) -> crate::brdf::axis_spread::SpreadAxes {
+        let node = &self.nodes[index];
+        match self.spreads.as_ref().and_then(|s| s.get(index)) {
+            Some(s) => s.axes(node),
+            None => crate::brdf::axis_spread::SpreadAxes::single(node.tangent()),
+        }
     }
 }
 
@@ -174,6 +240,16 @@ pub struct FlyawayList<'a> {
     nodes: &'a [FlyawayNode],
     current: u32,
     remaining: usize,
+}
+
+impl<'a> FlyawayList<'a> {
+    /// The same nodes with their indices in the level's `nodes`.
+    pub fn with_index(mut self) -> impl Iterator<Item = (usize, &'a FlyawayNode)> {
+        std::iter::from_fn(move || {
+            let index = self.current as usize;
+            self.next().map(|n| (index, n))
+        })
+    }
 }
 
 impl<'a> Iterator for FlyawayList<'a> {

@@ -13,7 +13,7 @@
 //! | 3       | `lobes`              | [`PackedLobe`] of every table              |
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
-//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`) |
+//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spreads`: the [`PackedAxisSpread`] of every level that has them, as 4-byte words (`GpuLevel::spread_base`) |
 //! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
 //! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
@@ -24,7 +24,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::flyaway::FlyawayNode;
+use super::flyaway::{FlyawayNode, PackedAxisSpread};
 use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission, PackedViewTilt};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
@@ -79,7 +79,10 @@ pub struct GpuLevel {
     /// First view tilt record of this level in `view_tilts` (binding 13), or
     /// [`crate::hybrid::NO_NODE`] where the level has none.
     pub tilt_base: u32,
-    pub pad: [u32; 1],
+    /// First spread record of this level's flyaway nodes, as a 4-byte word index into
+    /// binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
+    /// where the level has none.
+    pub spread_base: u32,
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -130,6 +133,9 @@ pub struct GpuModel {
     pub texels: Vec<ClusteredTexel>,
     pub fly_heads: Vec<u32>,
     pub fly_nodes: Vec<FlyawayNode>,
+    /// The spread records of every level that has them, in level order (uploaded after
+    /// `fly_nodes` in binding 6).
+    pub fly_spreads: Vec<PackedAxisSpread>,
     pub transmissions: Vec<PackedTransmission>,
     pub view_tilts: Vec<PackedViewTilt>,
 }
@@ -182,6 +188,7 @@ impl GpuModel {
             texels: Vec::new(),
             fly_heads: Vec::new(),
             fly_nodes: Vec::new(),
+            fly_spreads: Vec::new(),
             transmissions: Vec::new(),
             view_tilts: Vec::new(),
         };
@@ -215,6 +222,14 @@ impl GpuModel {
                 out.headers.extend_from_slice(&f.table.headers);
                 out.lobes.extend_from_slice(&f.table.lobes);
             }
+            // Made absolute once all nodes are laid out (they come first in binding 6).
+            g.spread_base = match l.flyaways.as_ref().and_then(|f| f.spreads.as_ref()).filter(|s| !s.is_empty()) {
+                Some(s) => {
+                    out.fly_spreads.extend_from_slice(s);
+                    (out.fly_spreads.len() - s.len()) as u32
+                }
+                None => crate::hybrid::NO_NODE,
+            };
             g.trans_base = match &l.transmission {
                 Some(t) => {
                     out.transmissions.extend_from_slice(t);
@@ -231,7 +246,11 @@ impl GpuModel {
             };
             out.header.levels[k] = g;
         }
-        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len()), ("view tilt records", out.view_tilts.len())] {
+        let node_words = 4 * out.fly_nodes.len() as u64;
+        for g in out.header.levels.iter_mut().take(model.levels.len()).filter(|g| g.spread_base != crate::hybrid::NO_NODE) {
+            g.spread_base = u32::try_from(node_words + g.spread_base as u64).map_err(|_| ModelError::Meta("flyaway spread records: more than the GPU layout's 32-bit indices reach".into()))?;
+        }
+        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len() + out.fly_spreads.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len()), ("view tilt records", out.view_tilts.len())] {
             if len >= u32::MAX as usize {
                 return Err(ModelError::Meta(format!("{len} {what}: more than the GPU layout's 32-bit indices reach")));
             }
@@ -249,8 +268,19 @@ impl GpuModel {
             ("BRDF lobes", bytes(&self.lobes, 16)),
             ("clustered texels", bytes(&self.texels, 8)),
             ("flyaway heads", bytes(&self.fly_heads, 4)),
-            ("flyaway nodes", bytes(&self.fly_nodes, 16)),
+            ("flyaway nodes", self.node_array()),
         ]
+    }
+
+    /// Binding 6: the nodes, then the spread records padded to whole 16-byte elements.
+    fn node_array(&self) -> Vec<u8> {
+        let mut b = bytes(&self.fly_nodes, 16);
+        if !self.fly_spreads.is_empty() {
+            b.truncate(self.fly_nodes.len() * 16);
+            b.extend_from_slice(bytemuck::cast_slice(&self.fly_spreads));
+            b.resize(b.len().div_ceil(16) * 16, 0);
+        }
+        b
     }
 
     /// Binding 12: the transmission records of every BSDF level (one zero record when

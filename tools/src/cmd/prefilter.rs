@@ -42,6 +42,11 @@ pub struct PrefilterArgs {
     /// baker/PREFILTER_MEASUREMENTS.md, "Grazing views", measures what the tilt buys).
     #[arg(long)]
     pub no_view_tilt: bool,
+    /// Shade each coarse flyaway voxel with one merged fibre axis and widened lobes,
+    /// rather than the cone of axes its fibres' spread gives (format 1.5's
+    /// FLYAWAY_SPREAD).
+    #[arg(long)]
+    pub no_flyaway_spread: bool,
 }
 
 impl PrefilterArgs {
@@ -55,7 +60,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, seed, ..Default::default() })
     }
 }
 

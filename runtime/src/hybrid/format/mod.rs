@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 4;
+pub const VERSION_MINOR: u16 = 5;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -73,14 +73,17 @@ pub enum SectionKind {
     FlyawayHeaders = 34,
     /// Per level: flyaway BRDF lobes.
     FlyawayLobes = 35,
+    /// Per coarse level with flyaways, optional (1.5): the spread of each node's axes
+    /// (4 bytes per node).
+    FlyawaySpread = 36,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
-    /// Per coarse level, optional (1.4): the view tilt per texel (8 bytes each).
+    /// Per coarse level, optional (1.4): the view tilt per texel (12 bytes each).
     ViewTilt = 49,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 12] = [
+    pub const ALL: [SectionKind; 13] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -91,6 +94,7 @@ impl SectionKind {
         SectionKind::FlyawayNodes,
         SectionKind::FlyawayHeaders,
         SectionKind::FlyawayLobes,
+        SectionKind::FlyawaySpread,
         SectionKind::Transmission,
         SectionKind::ViewTilt,
     ];
@@ -116,6 +120,7 @@ impl SectionKind {
             SectionKind::FlyawayNodes => "FLYAWAY_NODES",
             SectionKind::FlyawayHeaders => "FLYAWAY_HEADERS",
             SectionKind::FlyawayLobes => "FLYAWAY_LOBES",
+            SectionKind::FlyawaySpread => "FLYAWAY_SPREAD",
             SectionKind::Transmission => "TRANSMISSION",
             SectionKind::ViewTilt => "VIEW_TILT",
         }

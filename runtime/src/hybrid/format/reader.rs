@@ -285,7 +285,7 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         };
         let flyaways = match s.get(SectionKind::FlyawayHeads, l) {
             None => {
-                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes] {
+                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread] {
                     if let Some((index, _)) = s.get(kind, l) {
                         return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "present without FLYAWAY_HEADS".into() });
                     }
@@ -296,6 +296,10 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
                 heads: s.array(SectionKind::FlyawayHeads, l)?,
                 nodes: s.array(SectionKind::FlyawayNodes, l)?,
                 table: read_table(&s, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, l)?,
+                spreads: match s.get(SectionKind::FlyawaySpread, l) {
+                    Some(_) => Some(s.array(SectionKind::FlyawaySpread, l)?),
+                    None => None,
+                },
             }),
         };
         let transmission = match s.get(SectionKind::Transmission, l) {

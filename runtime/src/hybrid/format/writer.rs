@@ -69,6 +69,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
             out.push((SectionKind::FlyawayNodes, 0, level, bytes(bytemuck::cast_slice(&f.nodes))));
             out.push((SectionKind::FlyawayHeaders, 0, level, bytes(bytemuck::cast_slice(&f.table.headers))));
             out.push((SectionKind::FlyawayLobes, 0, level, bytes(bytemuck::cast_slice(&f.table.lobes))));
+            // Optional: a 1.4 reader skips it and shades each node with its one axis.
+            if let Some(spreads) = &f.spreads {
+                out.push((SectionKind::FlyawaySpread, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(spreads))));
+            }
         }
         // Optional: a 1.2 reader skips it and renders the reflection alone.
         if let Some(t) = &l.transmission {
