@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `NODES=1` the flyaway
 //! nodes' responses at 70°.
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
@@ -53,6 +53,9 @@ fn main() {
         return;
     }
     views(&model, pixels, "as it is     ");
+    if std::env::var("AS_IS_ONLY").is_ok() {
+        return;
+    }
     let mut bare = model.clone();
     for l in bare.levels.iter_mut() {
         l.flyaways = None;

@@ -107,10 +107,17 @@ fn flyaway_coverage_is_the_mean_over_the_positions_that_exist() {
     let f = out.levels[1].flyaways.as_ref().unwrap();
     assert!((f.list(0).next().unwrap().alpha() - 1.0).abs() < 1e-4);
     assert!((f.list(3).next().unwrap().alpha() - 1.0).abs() < 1e-4);
-    // One filled voxel of a 2×2×2 block hides a quarter of the view.
+    // One filled voxel of a 2×2×2 block hides a quarter of the view; it occupies the
+    // lower of the block's two layers, so over that half its coverage is 1 − 0.75².
     let mut m = uniform_model(2, 2, 1, flat_tile(8), |_, _| 0.1, &plain_params(), Vec3::Z, Vec3::X).unwrap();
     add_flyaways(&mut m, 0, &[v(1, 0, 1)], &plain_params()).unwrap();
     let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let f = out.levels[1].flyaways.as_ref().unwrap();
+    // (2e-3: the range rounds outward to 127/255.)
+    assert!((f.list(0).next().unwrap().alpha() - (1.0 - 0.75f32.powi(2))).abs() < 2e-3, "{}", f.list(0).next().unwrap().alpha());
+    assert_eq!(f.spreads.as_ref().unwrap()[0].slab, [127, 255]);
+    // Without spread records the node spans the block: a quarter over its whole depth.
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_spread: false, ..Default::default() }, &NoProgress).unwrap();
     assert!((out.levels[1].flyaways.as_ref().unwrap().list(0).next().unwrap().alpha() - 0.25).abs() < 1e-4);
 }
 
@@ -126,6 +133,9 @@ fn a_coarse_voxel_reaching_below_the_surface_has_its_coverage_in_its_free_part()
     assert_eq!(node.depth, 1);
     let want = 1.0 - 0.75f32.powi(5);
     assert!((node.alpha() - want).abs() < 2e-3, "{} against {want}", node.alpha());
+    // Its fibres occupy the upper of its two level-0 layers: the range [0, ½].
+    let (z0, z1) = out.levels[1].flyaways.as_ref().unwrap().spreads.as_ref().unwrap()[0].slab();
+    assert!(z0 == 0.0 && (z1 - 0.5).abs() <= 1.0 / 255.0, "[{z0}, {z1}]");
     // A ray down through the free part (where it stops) is as opaque as one through the
     // whole depth was at the old coverage, whatever the voxel's edge.
     use fabric_runtime::cpu::flyaways::flyaway_opacity;

@@ -247,7 +247,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             }
             8 => {
                 let node = fabric_runtime::hybrid::FlyawayNode { tangent: [e.u[0] as u16, (e.u[0] >> 16) as u16], ..Default::default() };
-                let record: PackedAxisSpread = bytemuck::cast(e.u[1]);
+                let record: PackedAxisSpread = bytemuck::cast([e.u[1], 0u32]);
                 let s = record.axes(&node);
                 let first = if e.u[2] == 0 { 0 } else { 2 };
                 let axes = (s.axes[first] - gx.truncate()).abs().max_element().max((s.axes[first + 1] - gy.truncate()).abs().max_element());

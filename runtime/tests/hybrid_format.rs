@@ -240,8 +240,10 @@ fn flyaway_spread_corruption_catalogue() {
     type Edit = fn(&mut Parts);
     let cases: Vec<(&str, Edit, Expect)> = vec![
         ("weights past 1", |p| p.find(SectionKind::FlyawaySpread, 1)[2..4].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("sum past 1"))),
-        ("one record short", |p| { let t = p.find(SectionKind::FlyawaySpread, 1); t.truncate(t.len() - 4) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
-        ("one record too many", |p| p.find(SectionKind::FlyawaySpread, 1).extend_from_slice(&[0; 4]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("a reversed depth range", |p| p.find(SectionKind::FlyawaySpread, 1)[12..14].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 1, why }) if why.contains("reversed"))),
+        ("reserved not 0", |p| p.find(SectionKind::FlyawaySpread, 1)[6] = 1, |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("reserved"))),
+        ("one record short", |p| { let t = p.find(SectionKind::FlyawaySpread, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("one record too many", |p| p.find(SectionKind::FlyawaySpread, 1).extend_from_slice(&[0; 8]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
         ("not whole records", |p| p.find(SectionKind::FlyawaySpread, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_SPREAD")),
         ("moved to a level of another node count", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 0, .. }))),
         ("on a level without flyaways", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),

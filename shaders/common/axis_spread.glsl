@@ -50,8 +50,9 @@ SpreadAxes spread_axes(vec3 e1, float roll, float lambda2, float lambda3) {
     return s;
 }
 
-// PackedAxisSpread as one word: roll unorm16 over [0, pi) in the low half, then the
-// unorm8 weights l2, l3 (runtime/src/hybrid/flyaway.rs).
+// PackedAxisSpread's first word: roll unorm16 over [0, pi) in the low half, then the
+// unorm8 weights l2, l3 (runtime/src/hybrid/flyaway.rs; the second word is the depth
+// range flyaways.glsl reads).
 SpreadAxes packed_spread_axes(vec3 e1, uint bits) {
     float roll = float(bits & 0xffffu) * (3.14159265358979 / 65536.0);
     float lambda2 = float((bits >> 16) & 0xffu) * (1.0 / 255.0);

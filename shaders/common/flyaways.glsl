@@ -122,8 +122,19 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                 uint node_index = node;
                 uvec4 nd = fly_nodes[l.fly_node_base + node];
                 node = nd.x;
-                float top = float(nd.y & 0xffffu) * l.voxel_depth;
-                float bottom = top + l.voxel_depth;
+                // A coarse node's record: the roll and weights (word 0), the depth range
+                // its fibres occupy (word 1; the whole voxel without a record).
+                uint spread = NO_NODE;
+                float z0 = 0.0;
+                float z1 = 1.0;
+                if (l.spread_base != NO_NODE) {
+                    spread = fly_spread_word(l.spread_base + 2u * node_index);
+                    uint slab = fly_spread_word(l.spread_base + 2u * node_index + 1u);
+                    z0 = float(slab & 0xffu) * (1.0 / 255.0);
+                    z1 = float((slab >> 8) & 0xffu) * (1.0 / 255.0);
+                }
+                float top = (float(nd.y & 0xffffu) + z0) * l.voxel_depth;
+                float bottom = (float(nd.y & 0xffffu) + z1) * l.voxel_depth;
                 if (bottom <= d_in) {
                     continue;
                 }
@@ -138,7 +149,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                     q_t[qn] = t_in;
                     q_w[qn] = out_.transmittance * opacity;
                     q_node[qn] = nd.zw;
-                    q_spread[qn] = l.spread_base == NO_NODE ? NO_NODE : fly_spread_word(l.spread_base + node_index);
+                    q_spread[qn] = spread;
                     qn += 1u;
                     out_.transmittance *= 1.0 - opacity;
                     if (out_.transmittance < MIN_TRANSMITTANCE) {

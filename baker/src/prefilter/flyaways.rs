@@ -16,7 +16,9 @@
 //! coverage of the free depth: α' = 1 − (1 − α)^(1/f), f the mean free fraction of its
 //! columns. Without it the coarse flyaways' opacity fell with the level (satin at 70°:
 //! 0.44 at level 0, 0.33 at level 3, 0.23 at level 5); with it every level is within
-//! 0.43 ± 0.02.
+//! 0.43 ± 0.02. With spread records a node also stores the depth range its level-0
+//! layers occupy; renderers cross only that range, and f counts only its free part (a
+//! grazing ray to a yarn's crest passes above fibres that lie low in the voxel).
 //!
 //! Its axis is the principal axis of the α-weighted axis tensor T = Σ α t tᵀ / Σ α (axes,
 //! never averaged as vectors), and the node stores the spread of T about it
@@ -49,10 +51,12 @@ const SPREAD_MAX: f32 = 2.0 / 3.0;
 /// How a coarse voxel's α is computed from its level-0 voxels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Coverage {
-    /// The mean opacity of its columns seen from above (the default).
+    /// The mean opacity of its columns seen from above, over the part of the voxel its
+    /// fibres occupy above the surface (the default).
     #[default]
     Projected,
-    /// The mean coverage of its voxel positions.
+    /// The mean coverage of its voxel positions (over the whole voxel, below the surface
+    /// included).
     Volume,
 }
 
@@ -65,19 +69,22 @@ struct Cell {
     tensor: Mat3,
     /// Coverage per level-0 cluster.
     by_param: Vec<(u32, f32)>,
+    /// The level-0 layers its voxels occupy, [first, last].
+    layers: (u32, u32),
 }
 
 // Not derived: glam's Mat3::default() is the identity, which would add 1/Σα to every
 // eigenvalue of the axis tensor.
 impl Default for Cell {
     fn default() -> Cell {
-        Cell { alpha: 0.0, columns: BTreeMap::new(), tensor: Mat3::ZERO, by_param: Vec::new() }
+        Cell { alpha: 0.0, columns: BTreeMap::new(), tensor: Mat3::ZERO, by_param: Vec::new(), layers: (u32::MAX, 0) }
     }
 }
 
 impl Cell {
-    fn add(&mut self, alpha: f32, t: Vec3, param: u32, column: (u32, u32)) {
+    fn add(&mut self, alpha: f32, t: Vec3, param: u32, column: (u32, u32), layer: u32) {
         self.alpha += alpha;
+        self.layers = (self.layers.0.min(layer), self.layers.1.max(layer));
         *self.columns.entry(column).or_insert(1.0) *= 1.0 - alpha.clamp(0.0, 1.0);
         let t = t.normalize_or_zero();
         self.tensor += Mat3::from_cols(t * t.x, t * t.y, t * t.z) * alpha;
@@ -111,7 +118,7 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
         for i in 0..w0 {
             for node in f0.list((j * w0 + i) as usize) {
                 let key = (j >> level, i >> level, (node.depth as u32) >> level);
-                cells.entry(key).or_default().add(node.alpha(), node.tangent(), node.param, (i, j));
+                cells.entry(key).or_default().add(node.alpha(), node.tangent(), node.param, (i, j), node.depth as u32);
             }
         }
     }
@@ -127,7 +134,13 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
             Coverage::Volume => cell.alpha / (extent(i, w0) * extent(j, h0) * extent(k, depth0)) as f32,
             Coverage::Projected => cell.columns.values().map(|t| 1.0 - t).sum::<f32>() / (extent(i, w0) * extent(j, h0)) as f32,
         };
-        let alpha = free_space_alpha(alpha, free_fraction(model, level, i, j, k)).clamp(2.0 / 65535.0, 1.0);
+        // The layers the fibres occupy, as fractions of the coarse voxel's depth.
+        let span = (1u32 << level) as f32;
+        // (Coverage::Volume keeps its meaning, the positions' mean: the whole voxel, as is.)
+        let projected = coverage == Coverage::Projected;
+        let slab = if spread && projected { ((cell.layers.0 as f32 - (k << level) as f32) / span, (cell.layers.1 as f32 + 1.0 - (k << level) as f32) / span) } else { (0.0, 1.0) };
+        let slab = (((slab.0 * 255.0).floor() / 255.0).max(0.0), ((slab.1 * 255.0).ceil() / 255.0).min(1.0));
+        let alpha = if projected { free_space_alpha(alpha, free_fraction(model, level, i, j, k, slab)) } else { alpha }.clamp(2.0 / 65535.0, 1.0);
         let tensor = cell.tensor * (1.0 / cell.alpha.max(1e-30));
         let axis = principal_axis(tensor).unwrap_or(Vec3::X);
         // With spread records the cone carries the spread: no widening.
@@ -138,7 +151,7 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
         let entry = *entries.entry((param, bin)).or_insert_with(|| table.push(&widened(&base[param as usize], bin)));
         let depth = u16::try_from(k).map_err(|_| ModelError::FlyawayNode { level, node: 0, why: format!("depth index {k} does not fit 16 bits") })?;
         if spread {
-            spreads.insert((i, j, depth), axis_spread(tensor, axis));
+            spreads.insert((i, j, depth), axis_spread(tensor, axis).with_slab(slab.0, slab.1));
         }
         columns.entry((i, j)).or_default().push(FlyawayInput { depth, alpha, tangent: axis, param: entry });
     }
@@ -157,18 +170,18 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
     Ok(Some(f))
 }
 
-/// The part of coarse voxel (i, j, k) of `level` above the height field: the mean over
-/// the level-0 columns of its footprint of the fraction of its depth range
-/// [k s_ℓ, (k+1) s_ℓ] that lies above the surface. A ray stops at the surface, so only
-/// that part is ever crossed.
-fn free_fraction(model: &HybridModel, level: usize, i: u32, j: u32, k: u32) -> f32 {
+/// The part of coarse voxel (i, j, k) of `level` a ray can cross through its fibres: the
+/// mean over the level-0 columns of its footprint of the fraction of its depth that lies
+/// in the occupied range `slab` (fractions of [k s_ℓ, (k+1) s_ℓ]) and above the surface
+/// (a ray stops there).
+fn free_fraction(model: &HybridModel, level: usize, i: u32, j: u32, k: u32, slab: (f32, f32)) -> f32 {
     let s = model.voxel_depth(level);
-    let top = k as f32 * s;
+    let top = (k as f32 + slab.0) * s;
     let (w0, h0) = (model.width(), model.height_px());
     let (mut sum, mut n) = (0.0f32, 0u32);
     for jj in (j << level)..((j + 1) << level).min(h0) {
         for ii in (i << level)..((i + 1) << level).min(w0) {
-            sum += ((model.depth(ii, jj) - top) / s).clamp(0.0, 1.0);
+            sum += ((model.depth(ii, jj) - top) / s).clamp(0.0, slab.1 - slab.0);
             n += 1;
         }
     }
@@ -216,7 +229,7 @@ mod tests {
     fn a_cell_starts_empty() {
         // glam's Mat3::default() is the identity: a cell's tensor must start at zero.
         let mut c = Cell::default();
-        c.add(0.5, Vec3::X, 0, (0, 0));
+        c.add(0.5, Vec3::X, 0, (0, 0), 0);
         assert_eq!(c.tensor * (1.0 / c.alpha), Mat3::from_cols(Vec3::X, Vec3::ZERO, Vec3::ZERO));
     }
 

@@ -167,8 +167,9 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
         let column = (cursor[1].k * g.dims[0] + cursor[0].k) as usize;
         let (d_in, d_out) = (depth_at(t), depth_at(t_next));
         for (index, node) in f.list(column).with_index() {
-            let top = node.depth as f32 * g.voxel_depth;
-            let bottom = top + g.voxel_depth;
+            let (z0, z1) = f.spreads.as_ref().map_or((0.0, 1.0), |s| s[index].slab());
+            let top = (node.depth as f32 + z0) * g.voxel_depth;
+            let bottom = (node.depth as f32 + z1) * g.voxel_depth;
             if bottom <= d_in {
                 continue;
             }

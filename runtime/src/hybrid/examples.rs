@@ -276,12 +276,13 @@ pub fn add_view_tilts(model: &mut HybridModel, strength: f32, cells: u32) {
 
 /// Gives the flyaway nodes of every coarse level of `model` spread records (format 1.5)
 /// that differ per node: roll 0.7·k rad, λ₂ = `strength`·(0.2 + 0.1·(k mod 3)), λ₃ =
-/// `strength`·0.1 for node k, so that a renderer that ignores or misreads them shows it.
+/// `strength`·0.1, occupied depths [0.1·(k mod 3), 1 − 0.2·(k mod 2)] for node k, so that
+/// a renderer that ignores or misreads them shows it.
 pub fn add_axis_spreads(model: &mut HybridModel, strength: f32) {
     use crate::hybrid::PackedAxisSpread;
     for l in model.levels.iter_mut().skip(1) {
         if let Some(f) = l.flyaways.as_mut() {
-            f.spreads = Some((0..f.nodes.len()).map(|k| PackedAxisSpread::new(0.7 * k as f32, strength * (0.2 + 0.1 * (k % 3) as f32), strength * 0.1)).collect());
+            f.spreads = Some((0..f.nodes.len()).map(|k| PackedAxisSpread::new(0.7 * k as f32, strength * (0.2 + 0.1 * (k % 3) as f32), strength * 0.1).with_slab(0.1 * (k % 3) as f32, 1.0 - 0.2 * (k % 2) as f32)).collect());
         }
     }
 }

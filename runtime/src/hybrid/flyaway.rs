@@ -51,17 +51,22 @@ impl FlyawayNode {
     }
 }
 
-/// The spread of a coarse node's axes (`brdf::axis_spread`): the roll θ of its axis
-/// tensor's second eigen-axis about the node's tangent, unorm16 over [0, π), and the weights λ₂, λ₃ of the
-/// second and third, unorm8 each (λ₂ + λ₃ ≤ 1; the tangent has 1 − λ₂ − λ₃). 4 bytes.
+/// The spread of a coarse node's fibres (`brdf::axis_spread`): the roll θ of its axis
+/// tensor's second eigen-axis about the node's tangent, unorm16 over [0, π), the weights
+/// λ₂, λ₃ of the second and third, unorm8 each (λ₂ + λ₃ ≤ 1), and the depth range of the
+/// voxel its fibres occupy. 8 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct PackedAxisSpread {
     pub roll: u16,
     pub lambda: [u8; 2],
+    /// The depth range [z₀, z₁] of the voxel its fibres occupy, unorm8 fractions of its
+    /// depth (z₀ ≤ z₁; the whole voxel: [0, 255]).
+    pub slab: [u8; 2],
+    pub reserved: u16,
 }
 
-const _: () = assert!(core::mem::size_of::<PackedAxisSpread>() == 4);
+const _: () = assert!(core::mem::size_of::<PackedAxisSpread>() == 8);
 
 impl PackedAxisSpread {
     /// Packs roll θ (any angle; taken mod π) and weights λ₂, λ₃ (clamped to [0, 1],
@@ -73,7 +78,20 @@ impl PackedAxisSpread {
         let unorm8 = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 };
         let l2 = unorm8(lambda2);
         let l3 = unorm8(lambda3).min(255 - l2);
-        PackedAxisSpread { roll: code, lambda: [l2, l3] }
+        PackedAxisSpread { roll: code, lambda: [l2, l3], slab: [0, 255], reserved: 0 }
+    }
+
+    /// The record with the occupied depth range [z0, z1] (fractions of the voxel's depth,
+    /// rounded outward).
+    pub fn with_slab(self, z0: f32, z1: f32) -> PackedAxisSpread {
+        let lo = (z0.clamp(0.0, 1.0) * 255.0).floor() as u8;
+        let hi = ((z1.clamp(0.0, 1.0) * 255.0).ceil() as u8).max(lo);
+        PackedAxisSpread { slab: [lo, hi], ..self }
+    }
+
+    /// [z₀, z₁] as fractions of the voxel's depth.
+    pub fn slab(&self) -> (f32, f32) {
+        (self.slab[0] as f32 * (1.0 / 255.0), self.slab[1] as f32 * (1.0 / 255.0))
     }
 
     /// θ ∈ [0, π).
@@ -213,6 +231,13 @@ impl Flyaways {
             if let Some(node) = spreads.iter().position(|s| s.lambda[0] as u32 + s.lambda[1] as u32 > 255) {
                 let s = spreads[node];
                 return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("spread weights λ₂ = {}/255 and λ₃ = {}/255 sum past 1", s.lambda[0], s.lambda[1]) });
+            }
+            if let Some(node) = spreads.iter().position(|s| s.slab[0] > s.slab[1]) {
+                let s = spreads[node];
+                return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("occupied depth range [{}, {}]/255 is reversed", s.slab[0], s.slab[1]) });
+            }
+            if let Some(node) = spreads.iter().position(|s| s.reserved != 0) {
+                return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("reserved spread field is {}, not 0", spreads[node].reserved) });
             }
         }
         Ok(())

@@ -13,7 +13,7 @@
 //! | 3       | `lobes`              | [`PackedLobe`] of every table              |
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
-//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spreads`: the [`PackedAxisSpread`] of every level that has them, as 4-byte words (`GpuLevel::spread_base`) |
+//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spreads`: the [`PackedAxisSpread`] of every level that has them, as 4-byte words (`GpuLevel::spread_base`), two per record |
 //! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
 //! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
@@ -79,8 +79,8 @@ pub struct GpuLevel {
     /// First view tilt record of this level in `view_tilts` (binding 13), or
     /// [`crate::hybrid::NO_NODE`] where the level has none.
     pub tilt_base: u32,
-    /// First spread record of this level's flyaway nodes, as a 4-byte word index into
-    /// binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
+    /// First spread record of this level's flyaway nodes (two 4-byte words each), as a
+    /// word index into binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
     /// where the level has none.
     pub spread_base: u32,
 }
@@ -226,7 +226,8 @@ impl GpuModel {
             g.spread_base = match l.flyaways.as_ref().and_then(|f| f.spreads.as_ref()).filter(|s| !s.is_empty()) {
                 Some(s) => {
                     out.fly_spreads.extend_from_slice(s);
-                    (out.fly_spreads.len() - s.len()) as u32
+                    // In words: a record is two.
+                    (2 * (out.fly_spreads.len() - s.len())) as u32
                 }
                 None => crate::hybrid::NO_NODE,
             };

@@ -73,8 +73,8 @@ pub enum SectionKind {
     FlyawayHeaders = 34,
     /// Per level: flyaway BRDF lobes.
     FlyawayLobes = 35,
-    /// Per coarse level with flyaways, optional (1.5): the spread of each node's axes
-    /// (4 bytes per node).
+    /// Per coarse level with flyaways, optional (1.5): the spread of each node's fibres,
+    /// in direction and in depth (8 bytes per node).
     FlyawaySpread = 36,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
