@@ -173,48 +173,21 @@ vec3 light_at(uint k, vec3 p, out vec3 wi, out float dist) {
     return light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
 }
 
-// Radiance leaving p toward wo under the lights, from one texel (a flyaway: edited
-// without rotation, lit by the environment with the flyaway budget).
-vec3 shade(TexelRef b, vec3 p, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
-    uint reading = model_reading();
-    Edit e = hit_edit(p);
-    vec3 radiance = vec3(0.0);
-    for (uint k = 0u; k < LIGHT_COUNT; ++k) {
-        vec3 wi;
-        float dist;
-        vec3 irradiance = light_at(k, p, wi, dist);
-        if (max3(irradiance) <= 0.0) {
-            continue;
-        }
-        // A light behind the sheet: only what comes through (flyaways pass nothing).
-        if (wi.z < 0.0) {
-            continue;
-        }
-        vec3 response = texel_response(b, e, false, wi, wo, reading);
-        if (max3(response) <= 0.0) {
-            continue;
-        }
-        radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
-    }
-#ifdef HYBRID_ENV
-    if (HAS_ENV) {
-        radiance += texel_env_response(b, e, false, wo, reading, volumetric, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
-    }
-#endif
-    return radiance;
-}
-
-// Radiance leaving p toward wo from flyaway node (param, fiber) of `level`: one axis
-// where `spread` is NO_NODE or weighs it 1, else the mean over the node's spread axes
-// (axis_spread.glsl), each light's visibility once. Twin: the node closure of
-// Scene::march_level_flyaways.
+// Radiance leaving p toward wo from flyaway node (param, fiber) of `level`: its one axis
+// where `spread` is NO_NODE, else the mean over the node's spread axes (axis_spread.glsl;
+// unused axes weigh 0), each light's visibility once; edited without rotation, lit by
+// the environment with the flyaway budget. Twin: the node closure of
+// Scene::march_level_flyaways (shade, or shade_blend over the axes).
 vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 wo, inout uint limited) {
+    SpreadAxes s;
     if (spread == NO_NODE) {
-        return shade(in_fiber_frame(level, param, fiber, wo), p, wo, true, false, limited);
-    }
-    SpreadAxes s = packed_spread_axes(fiber, spread);
-    if (s.weights.x >= 1.0) {
-        return shade(in_fiber_frame(level, param, s.axes[0], wo), p, wo, true, false, limited);
+        s.axes[0] = fiber;
+        s.axes[1] = vec3(0.0);
+        s.axes[2] = vec3(0.0);
+        s.axes[3] = vec3(0.0);
+        s.weights = vec4(1.0, 0.0, 0.0, 0.0);
+    } else {
+        s = packed_spread_axes(fiber, spread);
     }
     uint reading = model_reading();
     Edit e = hit_edit(p);
@@ -226,6 +199,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
         if (max3(irradiance) <= 0.0) {
             continue;
         }
+        // A light behind the sheet: flyaways pass nothing.
         if (wi.z < 0.0) {
             continue;
         }
