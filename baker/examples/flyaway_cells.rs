@@ -1,8 +1,12 @@
-//! A coarse flyaway node's response against the mean of the level-0 nodes it merges:
-//! per level, Σ α₀·f(level-0 nodes) / Σ over cells of (α·4^ℓ·f(coarse node)) at one
-//! view and the far views' light (baker/PREFILTER_MEASUREMENTS.md, "Coarse flyaways").
+//! A coarse flyaway node's response against the mean of the level-0 nodes it merges, at
+//! one view and the far views' light: per level, the sum over nodes of the coarse
+//! response over the sum of its cell's α-weighted mean level-0 response, the quartiles
+//! of the per-node ratio, and how much of the coarse voxels lies above the surface
+//! (baker/PREFILTER_MEASUREMENTS.md, "Coarse flyaways").
 //!
-//! `cargo run --release -p fabric-baker --example flyaway_cells MODEL.hyb [POLAR]`
+//! `cargo run --release -p fabric-baker --example flyaway_cells MODEL.hyb [POLAR]`;
+//! with `DUMP=1` also the first level-1 nodes of two or more children, their axes and
+//! their children's.
 
 use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, far_light};
 use fabric_runtime::brdf::cloth_frame;
