@@ -384,9 +384,15 @@ impl<'a> Scene<'a> {
                     return shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, EnvBudget::FLYAWAY);
                 }
                 // A coarse node's spread axes (brdf::axis_spread): their mean response,
-                // each light's visibility once.
-                let texels: Vec<(TexelBrdf, f32)> = (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| (fiber(axes.axes[k]), axes.weights[k])).collect();
-                shade_blend(&texels, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, EnvBudget::FLYAWAY)).sum::<Vec3>()
+                // each light's visibility once. A fixed array: this runs per node crossed.
+                let mut texels = [(fiber(axes.axes[0]), 0.0f32); 4];
+                let mut n = 0;
+                for k in (0..4).filter(|&k| axes.weights[k] > 0.0) {
+                    texels[n] = (fiber(axes.axes[k]), axes.weights[k]);
+                    n += 1;
+                }
+                let texels = &texels[..n];
+                shade_blend(texels, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, EnvBudget::FLYAWAY)).sum::<Vec3>()
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
