@@ -29,12 +29,13 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, Target, fit_cluster, predict, refine_texel};
+use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, Target, TargetRay, fit_cluster, fit_cluster_framed, predict, refine_texel};
+use crate::fit::frames::FrameOffset;
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
-use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::samples::{Geo, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -79,6 +80,9 @@ pub struct BakeOptions {
     /// ... or when doubling K lowers it by less than this fraction.
     pub min_gain: f64,
     pub fit: ClusterFitOptions,
+    /// Fit a frame offset per cluster with its BRDF (`fit::frames`, Eq. 8 with the frame
+    /// free), or `None` to keep the geometry stage's frames.
+    pub frame_fit: Option<FrameFitOptions>,
     /// Dense measurement of each representative: pairs and samples per pair.
     pub dense_pairs: usize,
     pub dense_spp: u32,
@@ -141,6 +145,7 @@ impl Default for BakeOptions {
             delta: 0.05,
             min_gain: 0.03,
             fit: ClusterFitOptions::default(),
+            frame_fit: Some(FrameFitOptions::default()),
             dense_pairs: 48,
             dense_spp: 32,
             per_texel_ridge: Some(0.05),
@@ -218,6 +223,9 @@ pub struct BakeReport {
     /// Per training pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
     pub pair_errors: Vec<(f64, f64)>,
     pub cluster_problems: Vec<ClusterProblem>,
+    /// Per cluster of the K kept: its fitted frame offset (`fit::frames`; all identity
+    /// without the frame fit).
+    pub frame_offsets: Vec<FrameOffset>,
     pub reading: String,
     pub shadows: bool,
     pub volumetric: bool,
@@ -335,6 +343,12 @@ fn world_heights(volume: &FabricVolume, heights: &[f32]) -> Vec<f32> {
 /// The model's level 0 with the geometry's frames, cluster `clusters[j]` per texel and
 /// `params` per cluster (a skeleton with one zero BRDF when `params` is empty).
 pub fn level0(g: &Geometry, clusters: &[u32], params: &[ClothParams]) -> Level {
+    let frames: Vec<ClothFrame> = (0..g.texels()).map(|j| fabric_runtime::brdf::cloth_frame(g.normals[j], g.tangents[j])).collect();
+    level0_framed(g, &frames, clusters, params)
+}
+
+/// Level 0 in the clustered encoding with the texels' frames `frames`.
+pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], params: &[ClothParams]) -> Level {
     let mut table = BrdfTable::new();
     if params.is_empty() {
         table.push(&ClothParams::new(Vec3::ZERO, 1.5, 0.0, &[]));
@@ -342,16 +356,16 @@ pub fn level0(g: &Geometry, clusters: &[u32], params: &[ClothParams]) -> Level {
     for p in params {
         table.push(p);
     }
-    let texels = (0..g.texels()).map(|j| ClusteredTexel::new(g.normals[j], g.tangents[j], clusters.get(j).copied().unwrap_or(0) as u16)).collect();
+    let texels = (0..g.texels()).map(|j| ClusteredTexel::new(frames[j].n, frames[j].t, clusters.get(j).copied().unwrap_or(0) as u16)).collect();
     Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
-/// cluster's β, γ, a and η, every lobe in the texel's frame.
-pub fn level0_per_texel(g: &Geometry, params: &[ClothParams]) -> Level {
+/// cluster's β, γ, a and η, every lobe in the texel's frame `frames[j]`.
+pub fn level0_per_texel(g: &Geometry, frames: &[ClothFrame], params: &[ClothParams]) -> Level {
     let mut table = BrdfTable::new();
     for (j, p) in params.iter().enumerate() {
-        let (n, t) = (g.normals[j], g.tangents[j]);
+        let (n, t) = (frames[j].n, frames[j].t);
         let lobes: Vec<_> = p.lobes().iter().map(|l| (*l, n, t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
@@ -420,22 +434,30 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut samples: Vec<Sample> = Vec::new();
     for (c, p) in pairs.iter().enumerate() {
         let base = (c * texels) as u32;
-        samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &all_texels, &probe, &jitter, &|j| base + j));
+        samples.extend(probe_samples(&skeleton, &measure, (p.wi, p.wo, c as u32), &all_texels, &probe, &jitter, &|j| base + j));
         bar.advance(1);
     }
     bar.finish();
     let target_of = |s: &Sample| training.images[s.target as usize / texels].pixels[s.target as usize % texels];
     stage("probing", t);
+    // The frames the probe shaded in (as stored: packed and decoded).
+    let base_frames: Vec<ClothFrame> = match &skeleton.levels[0].surface {
+        Surface::Clustered { texels, .. } => texels.iter().map(|t| t.frame()).collect(),
+        Surface::PerTexel(_) => unreachable!("the skeleton is clustered"),
+    };
 
     // 4. Features and K doubling.
     let features = texel_features(&geometry.normals, &geometry.tangents, &training.images);
     let dense_set = training_pairs(&PairOptions { count: options.dense_pairs.max(8), seed: mix64(options.seed ^ 0x64656e7365), ..options.pairs.clone() });
+    // Every sample's pair: the training pairs, then the dense ones.
+    let dirs: Vec<(Vec3, Vec3)> = pairs.iter().chain(&dense_set).map(|p| (p.wi, p.wo)).collect();
+    let ray_of = |s: &Sample| TargetRay { texel: s.hit, dirs: s.dirs, vis: s.vis };
     let mut dense_cache: HashMap<u32, Vec<Sample>> = HashMap::new();
     let mut dense_values: Vec<Vec3> = Vec::new();
     let dense_seed = mix64(options.seed ^ 0x6d65_6173);
     let mut rounds: Vec<KRound> = Vec::new();
     // (training error, clusters, fits, predictions) of the best round so far.
-    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<Image>);
+    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<FrameOffset>, Vec<Image>);
     let mut best: Option<Round> = None;
     let mut k = options.k_min.min(texels);
     let t_fit = Instant::now();
@@ -459,7 +481,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 let index = dense_values.len() as u32;
                 dense_values.push(values[c]);
                 let jitter = |texel: u32, s: u32| texel_jitter(dense_seed, texel, c as u32, s);
-                rep_samples.extend(probe_samples(&skeleton, &measure, p.wi, p.wo, &[rep], &probe, &jitter, &|_| index));
+                rep_samples.extend(probe_samples(&skeleton, &measure, (p.wi, p.wo, (pairs.len() + c) as u32), &[rep], &probe, &jitter, &|_| index));
             }
             dense_cache.insert(rep, rep_samples);
             bar.advance(1);
@@ -468,27 +490,37 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         // Gather each cluster's targets: training samples by the texel hit, and the dense
         // samples of its representative.
         let cluster = &km.assignment;
-        let mut targets: Vec<Vec<Target>> = vec![Vec::new(); k];
+        let mut targets: Vec<(Vec<Target>, Vec<TargetRay>)> = vec![(Vec::new(), Vec::new()); k];
         for s in &samples {
-            targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: target_of(s) });
+            let t = &mut targets[cluster[s.hit as usize] as usize];
+            t.0.push(Target { geo: s.geo, radiance: target_of(s) });
+            t.1.push(ray_of(s));
         }
         for &rep in &reps {
             for s in &dense_cache[&(rep as u32)] {
-                targets[cluster[s.hit as usize] as usize].push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
+                let t = &mut targets[cluster[s.hit as usize] as usize];
+                t.0.push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
+                t.1.push(ray_of(s));
             }
         }
         let bar = begin_stage(progress, format!("K = {k}: fitting"), k as u64);
-        let fits: Vec<ClusterFit> = targets
+        let (fits, offsets): (Vec<ClusterFit>, Vec<FrameOffset>) = targets
             .par_iter()
-            .map(|t| {
-                let f = fit_cluster(t, &options.fit);
+            .map(|(t, r)| {
+                let f = match &options.frame_fit {
+                    Some(fo) => fit_cluster_framed(t, r, &base_frames, &dirs, &options.fit, fo),
+                    None => (fit_cluster(t, &options.fit), FrameOffset::IDENTITY),
+                };
                 bar.advance(1);
                 f
             })
-            .collect();
+            .unzip();
+        drop(targets);
         bar.finish();
         // The model's training images, and its error against them.
-        let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, options.fit.reading, &training, texels, options.probe_rays);
+        let frames: Vec<ClothFrame> = base_frames.iter().zip(cluster).map(|(f, &c)| offsets[c as usize].apply(f)).collect();
+        let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
+        let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, &geo_of, options.fit.reading, &training, texels, options.probe_rays);
         let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
         let mut residuals: Vec<f64> = fits.iter().filter(|f| f.samples > 0).map(|f| f.relative_residual()).collect();
         residuals.sort_by(|a, b| a.total_cmp(b));
@@ -497,7 +529,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let improved = best.as_ref().is_none_or(|b| error < b.0);
         let gain = best.as_ref().map_or(1.0, |b| (b.0 - error) / b.0.max(1e-30));
         if improved {
-            best = Some((error, cluster.clone(), fits, predictions));
+            best = Some((error, cluster.clone(), fits, offsets, predictions));
         }
         if error < options.delta.max(training.noise) || gain < options.min_gain || k >= options.k_max.min(texels) {
             break;
@@ -505,7 +537,10 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         k = (2 * k).min(options.k_max).min(texels);
     }
     stage("clustering and fitting", t_fit);
-    let (cluster_error, clusters, fits, predictions) = best.expect("at least one round");
+    let (cluster_error, clusters, fits, offsets, predictions) = best.expect("at least one round");
+    // The texels' frames as fitted (each cluster's offset applied): what level 0 stores.
+    let frames: Vec<ClothFrame> = base_frames.iter().zip(&clusters).map(|(f, &c)| offsets[c as usize].apply(f)).collect();
+    let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
     let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
     let k = params.len();
     let cluster_block_error = rounds.iter().find(|r| r.k == k).map_or(cluster_error, |r| r.block_error);
@@ -517,10 +552,10 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let bar = begin_stage(progress, "per-texel refinement", 1);
             let mut per_texel: Vec<Vec<Target>> = vec![Vec::new(); texels];
             for s in &samples {
-                per_texel[s.hit as usize].push(Target { geo: s.geo, radiance: target_of(s) });
+                per_texel[s.hit as usize].push(Target { geo: geo_of(s), radiance: target_of(s) });
             }
             let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
-            let predictions = predict_images(&samples, &|hit| &refined[hit], options.fit.reading, &training, texels, options.probe_rays);
+            let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
             bar.finish();
             (Some(refined), predictions, e, be)
@@ -541,7 +576,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut transmission_report = None;
     let mut texel_transmission = None;
     if let Some(to) = &options.transmission {
-        let (t, r) = fit_texel_transmission(&skeleton, &measure, &pairs, &clusters, k, options, to, progress)?;
+        let (t, r) = fit_texel_transmission(&skeleton, &frames, &measure, &pairs, &clusters, k, options, to, progress)?;
         texel_transmission = Some(t);
         transmission_report = Some(r);
     }
@@ -549,8 +584,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
 
     let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}{}", env!("CARGO_PKG_VERSION"), error, training.noise, if texel_transmission.is_some() { ", BSDF" } else { "" });
     let level = match &texel_params {
-        Some(p) => level0_per_texel(&geometry, p),
-        None => level0(&geometry, &clusters, &params),
+        Some(p) => level0_per_texel(&geometry, &frames, p),
+        None => level0_framed(&geometry, &frames, &clusters, &params),
     };
     let mut model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
     if let Some(t) = &texel_transmission {
@@ -611,6 +646,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         error_non_grazing,
         pair_errors: predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect(),
         cluster_problems,
+        frame_offsets: offsets.clone(),
         reading: options.fit.reading.name().into(),
         shadows: options.shadows,
         volumetric: options.volumetric,
@@ -631,11 +667,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
 }
 
 /// The transmission stage: backlit training renderings of the masked surface, probed
-/// through `skeleton` (the texel the model shows along each ray, in its frame), a fit per
+/// through `skeleton` (the texel the model shows along each ray, in its fitted frame
+/// `frames[texel]`, the lobe-0 frame level 0 stores), a fit per
 /// cluster of `clusters` (K = `k`), a ridge refinement per texel where the bake refines
 /// per texel, and each texel's energy capped. Returns the per-texel terms and the report.
 #[allow(clippy::too_many_arguments)] // the stage's inputs: model, sheet, pairs, clusters and options
-fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs: &[Pair], clusters: &[u32], k: usize, options: &BakeOptions, to: &TransmissionFitOptions, progress: &dyn Progress) -> Result<(Vec<ClothTransmission>, TransmissionReport), BakeError> {
+fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure: &MeasureScene, pairs: &[Pair], clusters: &[u32], k: usize, options: &BakeOptions, to: &TransmissionFitOptions, progress: &dyn Progress) -> Result<(Vec<ClothTransmission>, TransmissionReport), BakeError> {
     let texels = clusters.len();
     let (nx, ny) = measure.texels();
     let t = Instant::now();
@@ -647,10 +684,6 @@ fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs:
     bar.finish();
     let render_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let frames: Vec<ClothFrame> = match &skeleton.levels[0].surface {
-        Surface::Clustered { texels, .. } => texels.iter().map(|t| t.frame()).collect(),
-        Surface::PerTexel(_) => return Err(BakeError::Cluster("the skeleton's level 0 must be clustered".into())),
-    };
     let probe = ProbeOptions { rays: options.probe_rays, shadows: false, volumetric: false };
     let all_texels: Vec<u32> = (0..texels as u32).collect();
     let jitter = image_jitter(half_seeds(seed)[0]);
@@ -659,7 +692,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs:
     let mut samples: Vec<(u32, u32, TransGeo)> = Vec::new();
     for (c, p) in backlit.iter().enumerate() {
         let base = (c * texels) as u32;
-        samples.extend(probe_samples(skeleton, measure, p.wi, p.wo, &all_texels, &probe, &jitter, &|j| base + j).into_iter().map(|s| (s.hit, s.target, TransGeo::new(&frames[s.hit as usize], p.wi, p.wo))));
+        samples.extend(probe_samples(skeleton, measure, (p.wi, p.wo, c as u32), &all_texels, &probe, &jitter, &|j| base + j).into_iter().map(|s| (s.hit, s.target, TransGeo::new(&frames[s.hit as usize], p.wi, p.wo))));
         bar.advance(1);
     }
     let target_of = |target: u32| training.images[target as usize / texels].pixels[target as usize % texels];
@@ -687,9 +720,9 @@ fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs:
         }
         None => (0..texels).map(|j| fits[clusters[j] as usize].transmission).collect(),
     };
-    let capped: Vec<ClothTransmission> = refined.par_iter().zip(&frames).map(|(t, f)| cap_energy(t, f)).collect();
+    let capped: Vec<ClothTransmission> = refined.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
     let capped_texels = capped.iter().zip(&refined).filter(|(a, b)| a != b).count();
-    let worst_albedo = capped.par_iter().zip(&frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
+    let worst_albedo = capped.par_iter().zip(frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
     let predictions = predict_all(&|j| capped[j]);
     let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
     bar.finish();
@@ -705,15 +738,22 @@ fn fit_texel_transmission(skeleton: &HybridModel, measure: &MeasureScene, pairs:
 
 /// The model's image for each training pair: per pixel, the mean of its rays'
 /// predictions (a ray that missed counts as black, as in the renderer).
-fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p ClothParams, reading: BrdfReading, training: &TrainingImages, texels: usize, rays: u32) -> Vec<Image> {
+#[allow(clippy::too_many_arguments)] // the samples, how to shade them, and the images' layout
+fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p ClothParams, geo_of: &dyn Fn(&Sample) -> Geo, reading: BrdfReading, training: &TrainingImages, texels: usize, rays: u32) -> Vec<Image> {
     let weight = 1.0 / rays as f32;
     let mut images: Vec<Image> = training.images.iter().map(|i| Image::new(i.width, i.height)).collect();
     for s in samples {
         let p = params_of(s.hit as usize);
         let image = &mut images[s.target as usize / texels];
-        image.pixels[s.target as usize % texels] += weight * predict(p, &s.geo, reading);
+        image.pixels[s.target as usize % texels] += weight * predict(p, &geo_of(s), reading);
     }
     images
+}
+
+/// A sample's factors in the frame `frames` gives its texel (its pair from `dirs`).
+fn sample_geo(s: &Sample, frames: &[ClothFrame], dirs: &[(Vec3, Vec3)]) -> Geo {
+    let (wi, wo) = dirs[s.dirs as usize];
+    Geo::new(&frames[s.hit as usize], wi, wo, s.vis)
 }
 
 /// 4×4 block means of a texel-order image (partial blocks at the edges included).

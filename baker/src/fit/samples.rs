@@ -101,6 +101,10 @@ pub struct Sample {
     pub hit: u32,
     /// Which target: the training pixel (pair · texels + pixel), or a dense value.
     pub target: u32,
+    /// The pair, as the caller numbers its directions (so `geo` can be recomputed in
+    /// another frame), and the light's visibility times the ray's weight.
+    pub dirs: u32,
+    pub vis: f32,
     pub geo: Geo,
 }
 
@@ -118,10 +122,10 @@ pub struct ProbeOptions {
 /// Probes the rays of `texels` for the pair (`wi`, `wo`): ray s of texel (x, y) is the
 /// reference's sample s of seed `jitter_seed` (the jitter `Rng::new(seed, texel, s)`
 /// draws first), through the model `model` (its height field and texel frames).
-/// Returns samples whose target is `target(texel index)`. Rays that miss the surface
-/// (none should on a periodic tile) are dropped.
+/// Returns samples whose target is `target(texel index)` and whose pair is `dirs`. Rays
+/// that miss the surface (none should on a periodic tile) are dropped.
 #[allow(clippy::too_many_arguments)] // the rays' full description: model, sheet, pair, texels, jitter, targets
-pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: Vec3, texels: &[u32], options: &ProbeOptions, jitter: &(dyn Fn(u32, u32) -> (f32, f32) + Sync), target: &(dyn Fn(u32) -> u32 + Sync)) -> Vec<Sample> {
+pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, (wi, wo, dirs): (Vec3, Vec3, u32), texels: &[u32], options: &ProbeOptions, jitter: &(dyn Fn(u32, u32) -> (f32, f32) + Sync), target: &(dyn Fn(u32) -> u32 + Sync)) -> Vec<Sample> {
     let lights = [Light::directional(wi, Vec3::ONE)];
     let factor = if options.volumetric { volume_factor(wi, wo) } else { 1.0 };
     let render = CpuRenderOptions { periodic: true, shadows: if options.shadows { ShadowMode::On } else { ShadowMode::Off }, ..Default::default() };
@@ -145,7 +149,8 @@ pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, wi: Vec3, wo: 
                 let probe = scene.probe_ray(&Ray::new(o, d), 0, false);
                 let hit = probe.surface?;
                 let index = hit.texel.0 + model.width() * hit.texel.1;
-                Some(Sample { hit: index, target: target(texel), geo: Geo::new(&frames[index as usize], wi, wo, hit.visibility * factor) })
+                let vis = hit.visibility * factor;
+                Some(Sample { hit: index, target: target(texel), dirs, vis, geo: Geo::new(&frames[index as usize], wi, wo, vis) })
             })
         })
         .collect()

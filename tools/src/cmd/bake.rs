@@ -91,6 +91,10 @@ pub struct BakeArgs {
     /// Reading of the printed Eqs. 2–3.
     #[arg(long, value_enum, default_value = "width")]
     pub reading: ReadingArg,
+    /// Keep the geometry stage's texel frames instead of fitting a frame offset per
+    /// cluster with its BRDF (slope, rise, twist, roll: Eq. 8 with the frame free).
+    #[arg(long)]
+    pub no_frame_fit: bool,
     /// Fit without the height field's shadowing of the light.
     #[arg(long)]
     pub no_shadows: bool,
@@ -165,6 +169,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;
     options.fit.fit_eta = args.fit_eta;
+    if args.no_frame_fit {
+        options.frame_fit = None;
+    }
     options.fit.reading = match args.reading {
         ReadingArg::Bounded => BrdfReading::Bounded,
         ReadingArg::Width => BrdfReading::Width,
@@ -247,6 +254,22 @@ pub fn run(args: BakeArgs) -> Result<()> {
         );
     }
     println!("kept K = {}; training-render noise floor {:.2}%", r.k, 100.0 * r.noise_floor);
+    let moved: Vec<_> = r.frame_offsets.iter().filter(|o| !o.is_identity()).collect();
+    if !moved.is_empty() {
+        let median = |mut v: Vec<f32>| {
+            v.sort_by(f32::total_cmp);
+            v[v.len() / 2]
+        };
+        println!(
+            "frame fit: {} of {} clusters' frames moved (median slope scale {:.2}, |rise| {:.1}°, |twist| {:.1}°, |roll| {:.1}°)",
+            moved.len(),
+            r.frame_offsets.len(),
+            median(moved.iter().map(|o| o.slope).collect()),
+            median(moved.iter().map(|o| o.rise.abs().to_degrees()).collect()),
+            median(moved.iter().map(|o| o.twist.abs().to_degrees()).collect()),
+            median(moved.iter().map(|o| o.roll.abs().to_degrees()).collect()),
+        );
+    }
     if r.per_texel {
         println!(
             "per-texel refinement: training error {:.2}% per texel, {:.2}% over 4x4 blocks (clusters alone: {:.2}%, {:.2}%)",
