@@ -29,7 +29,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, Target, TargetRay, fit_cluster, fit_cluster_framed, predict, refine_texel};
+use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
@@ -223,9 +223,9 @@ pub struct BakeReport {
     /// Per training pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
     pub pair_errors: Vec<(f64, f64)>,
     pub cluster_problems: Vec<ClusterProblem>,
-    /// Per cluster of the K kept: its fitted frame offset (`fit::frames`; all identity
-    /// without the frame fit).
-    pub frame_offsets: Vec<FrameOffset>,
+    /// Per cluster of the K kept: its fitted frame offset per lobe (`fit::frames`; all
+    /// identity without the frame fit, all equal unless the lobes have their own).
+    pub frame_offsets: Vec<Vec<FrameOffset>>,
     pub reading: String,
     pub shadows: bool,
     pub volumetric: bool,
@@ -361,15 +361,29 @@ pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], para
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
-/// cluster's β, γ, a and η, every lobe in the texel's frame `frames[j]`.
-pub fn level0_per_texel(g: &Geometry, frames: &[ClothFrame], params: &[ClothParams]) -> Level {
+/// cluster's β, γ, a and η, lobe l in the frame `frames[j][l]` (lobe 0's also the
+/// diffuse term's).
+pub fn level0_per_texel(g: &Geometry, frames: &[TexelFrames], params: &[ClothParams]) -> Level {
     let mut table = BrdfTable::new();
     for (j, p) in params.iter().enumerate() {
-        let (n, t) = (frames[j].n, frames[j].t);
-        let lobes: Vec<_> = p.lobes().iter().map(|l| (*l, n, t)).collect();
+        let lobes: Vec<_> = p.lobes().iter().enumerate().map(|(l, lobe)| (*lobe, frames[j][l].n, frames[j][l].t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
     Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None }
+}
+
+/// A level-0 texel's frame per lobe (lobe 0's also the diffuse term's).
+pub type TexelFrames = [ClothFrame; LEVEL0_LOBES];
+
+/// Each texel's frames with its cluster's offsets applied.
+fn offset_frames(base: &[ClothFrame], clusters: &[u32], offsets: &[Vec<FrameOffset>]) -> Vec<TexelFrames> {
+    base.iter()
+        .zip(clusters)
+        .map(|(f, &c)| {
+            let offs = &offsets[c as usize];
+            std::array::from_fn(|l| offs.get(l).or(offs.last()).map_or(*f, |o| o.apply(f)))
+        })
+        .collect()
 }
 
 /// Bakes `volume` into a hybrid model (level 0).
@@ -457,7 +471,10 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let dense_seed = mix64(options.seed ^ 0x6d65_6173);
     let mut rounds: Vec<KRound> = Vec::new();
     // (training error, clusters, fits, predictions) of the best round so far.
-    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<FrameOffset>, Vec<Image>);
+    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<Vec<FrameOffset>>, Vec<Image>);
+    // The clustered encoding holds one frame per texel: lobes of their own need the
+    // per-texel one.
+    let frame_fit = options.frame_fit.clone().map(|f| FrameFitOptions { per_lobe: f.per_lobe && options.per_texel_ridge.is_some(), ..f });
     let mut best: Option<Round> = None;
     let mut k = options.k_min.min(texels);
     let t_fit = Instant::now();
@@ -504,12 +521,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             }
         }
         let bar = begin_stage(progress, format!("K = {k}: fitting"), k as u64);
-        let (fits, offsets): (Vec<ClusterFit>, Vec<FrameOffset>) = targets
+        let (fits, offsets): (Vec<ClusterFit>, Vec<Vec<FrameOffset>>) = targets
             .par_iter()
             .map(|(t, r)| {
-                let f = match &options.frame_fit {
+                let f = match &frame_fit {
                     Some(fo) => fit_cluster_framed(t, r, &base_frames, &dirs, &options.fit, fo),
-                    None => (fit_cluster(t, &options.fit), FrameOffset::IDENTITY),
+                    None => (fit_cluster(t, &options.fit), vec![FrameOffset::IDENTITY]),
                 };
                 bar.advance(1);
                 f
@@ -518,7 +535,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         drop(targets);
         bar.finish();
         // The model's training images, and its error against them.
-        let frames: Vec<ClothFrame> = base_frames.iter().zip(cluster).map(|(f, &c)| offsets[c as usize].apply(f)).collect();
+        let frames = offset_frames(&base_frames, cluster, &offsets);
         let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
         let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, &geo_of, options.fit.reading, &training, texels, options.probe_rays);
         let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
@@ -539,7 +556,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     stage("clustering and fitting", t_fit);
     let (cluster_error, clusters, fits, offsets, predictions) = best.expect("at least one round");
     // The texels' frames as fitted (each cluster's offset applied): what level 0 stores.
-    let frames: Vec<ClothFrame> = base_frames.iter().zip(&clusters).map(|(f, &c)| offsets[c as usize].apply(f)).collect();
+    let frames = offset_frames(&base_frames, &clusters, &offsets);
+    let lobe0_frames: Vec<ClothFrame> = frames.iter().map(|f| f[0]).collect();
     let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
     let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
     let k = params.len();
@@ -550,9 +568,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
             let bar = begin_stage(progress, "per-texel refinement", 1);
-            let mut per_texel: Vec<Vec<Target>> = vec![Vec::new(); texels];
+            let mut per_texel: Vec<Vec<LobeTarget>> = vec![Vec::new(); texels];
             for s in &samples {
-                per_texel[s.hit as usize].push(Target { geo: geo_of(s), radiance: target_of(s) });
+                per_texel[s.hit as usize].push(LobeTarget { radiance: target_of(s), ..geo_of(s) });
             }
             let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
@@ -576,7 +594,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut transmission_report = None;
     let mut texel_transmission = None;
     if let Some(to) = &options.transmission {
-        let (t, r) = fit_texel_transmission(&skeleton, &frames, &measure, &pairs, &clusters, k, options, to, progress)?;
+        let (t, r) = fit_texel_transmission(&skeleton, &lobe0_frames, &measure, &pairs, &clusters, k, options, to, progress)?;
         texel_transmission = Some(t);
         transmission_report = Some(r);
     }
@@ -585,7 +603,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let note = format!("fabric bake (fabric-baker {}): K = {k}, training error {:.4}, noise floor {:.4}{}", env!("CARGO_PKG_VERSION"), error, training.noise, if texel_transmission.is_some() { ", BSDF" } else { "" });
     let level = match &texel_params {
         Some(p) => level0_per_texel(&geometry, &frames, p),
-        None => level0_framed(&geometry, &frames, &clusters, &params),
+        None => level0_framed(&geometry, &lobe0_frames, &clusters, &params),
     };
     let mut model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
     if let Some(t) = &texel_transmission {
@@ -610,7 +628,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let full_training = render_training(&full, &pairs, fo.spp.max(2), mix64(options.seed ^ 0x666c79), &|| bar.advance(1))?;
         bar.finish();
         let bar = begin_stage(progress, "flyaways: fitting", 1);
-        let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &surface_of, &shape, kf, options.fit.reading);
+        let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &shape, kf, options.fit.reading);
         bar.finish();
         rep.voxels = geometry.flyaways.len();
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
@@ -739,21 +757,27 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
 /// The model's image for each training pair: per pixel, the mean of its rays'
 /// predictions (a ray that missed counts as black, as in the renderer).
 #[allow(clippy::too_many_arguments)] // the samples, how to shade them, and the images' layout
-fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p ClothParams, geo_of: &dyn Fn(&Sample) -> Geo, reading: BrdfReading, training: &TrainingImages, texels: usize, rays: u32) -> Vec<Image> {
+fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p ClothParams, geo_of: &dyn Fn(&Sample) -> LobeTarget, reading: BrdfReading, training: &TrainingImages, texels: usize, rays: u32) -> Vec<Image> {
     let weight = 1.0 / rays as f32;
     let mut images: Vec<Image> = training.images.iter().map(|i| Image::new(i.width, i.height)).collect();
     for s in samples {
         let p = params_of(s.hit as usize);
         let image = &mut images[s.target as usize / texels];
-        image.pixels[s.target as usize % texels] += weight * predict(p, &geo_of(s), reading);
+        image.pixels[s.target as usize % texels] += weight * predict_lobes(p, &geo_of(s), reading);
     }
     images
 }
 
-/// A sample's factors in the frame `frames` gives its texel (its pair from `dirs`).
-fn sample_geo(s: &Sample, frames: &[ClothFrame], dirs: &[(Vec3, Vec3)]) -> Geo {
+/// A sample's factors in its texel's frames `frames` (its pair from `dirs`; the radiance
+/// left zero).
+fn sample_geo(s: &Sample, frames: &[TexelFrames], dirs: &[(Vec3, Vec3)]) -> LobeTarget {
     let (wi, wo) = dirs[s.dirs as usize];
-    Geo::new(&frames[s.hit as usize], wi, wo, s.vis)
+    let f = &frames[s.hit as usize];
+    let mut geos = [Geo::default(); LEVEL0_LOBES];
+    for l in 0..LEVEL0_LOBES {
+        geos[l] = if l > 0 && f[l] == f[l - 1] { geos[l - 1] } else { Geo::new(&f[l], wi, wo, s.vis) };
+    }
+    LobeTarget { geos, radiance: Vec3::ZERO }
 }
 
 /// 4×4 block means of a texel-order image (partial blocks at the edges included).

@@ -78,6 +78,45 @@ pub struct Target {
     pub radiance: Vec3,
 }
 
+/// A sample as the fit sees it: the factors in lobe j's frame (lobe 0's frame is also
+/// the diffuse term's) and the target radiance.
+pub trait Sampled {
+    fn geo(&self, lobe: usize) -> &Geo;
+    fn radiance(&self) -> Vec3;
+}
+
+impl Sampled for Target {
+    #[inline]
+    fn geo(&self, _lobe: usize) -> &Geo {
+        &self.geo
+    }
+    #[inline]
+    fn radiance(&self) -> Vec3 {
+        self.radiance
+    }
+}
+
+/// Most lobes at level 0, and so most frames per texel.
+pub const LEVEL0_LOBES: usize = 4;
+
+/// A target whose lobes each have their own frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LobeTarget {
+    pub geos: [Geo; LEVEL0_LOBES],
+    pub radiance: Vec3,
+}
+
+impl Sampled for LobeTarget {
+    #[inline]
+    fn geo(&self, lobe: usize) -> &Geo {
+        &self.geos[lobe.min(LEVEL0_LOBES - 1)]
+    }
+    #[inline]
+    fn radiance(&self) -> Vec3 {
+        self.radiance
+    }
+}
+
 /// Where a target's [`Geo`] came from, so that it can be recomputed in another frame:
 /// the texel the model shows along the ray (index into the frames), the pair (index into
 /// the directions), and the light's visibility times the ray's weight.
@@ -95,11 +134,23 @@ pub struct FrameFitOptions {
     pub max_evals: usize,
     /// Alternations of (frame search with the BRDF's widths fixed, BRDF refit).
     pub rounds: usize,
+    /// One offset per lobe (lobe 0's also the diffuse term's) instead of one shared.
+    pub per_lobe: bool,
+    /// Samples the frame search uses (a deterministic stride over the cluster's); the
+    /// refit in the frames found uses them all.
+    pub search_samples: usize,
 }
 
 impl Default for FrameFitOptions {
     fn default() -> Self {
-        FrameFitOptions { max_evals: 240, rounds: 2 }
+        FrameFitOptions {
+            max_evals: 240,
+            rounds: 2,
+            // Measured (FIT_MEASUREMENTS.md): held-out twill 26.9% against 27.8% with one
+            // shared offset, satin 38.3% against 38.7%.
+            per_lobe: true,
+            search_samples: 3000,
+        }
     }
 }
 
@@ -140,12 +191,14 @@ fn decode(x: &[f64], o: &ClusterFitOptions) -> Option<(Vec<f32>, Vec<f32>, f32, 
     (inside && ordered).then_some((beta, gamma, a, eta))
 }
 
-/// The basis values of one sample: [c, F·shadow·S_1·c, …].
+/// The basis values of one sample: [c_0, F·shadow·S_1·c_1, …], each lobe's factors in
+/// its own frame (c_j = max(n_j·ω_i, 0) · visibility; lobe 0's also the diffuse term's).
 #[inline]
-fn basis(g: &Geo, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfReading, out: &mut [f64]) {
-    out[0] = g.cos_i as f64;
-    let common = cloth_fresnel(eta, g.cos_d) * cloth_shadowing(g.cos_phi_i, a) * g.cos_i;
+fn basis<T: Sampled>(s: &T, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfReading, out: &mut [f64]) {
+    out[0] = s.geo(0).cos_i as f64;
     for j in 0..beta.len() {
+        let g = s.geo(j);
+        let common = cloth_fresnel(eta, g.cos_d) * cloth_shadowing(g.cos_phi_i, a) * g.cos_i;
         out[1 + j] = (common * cloth_lobe_shape(g.theta_sum, g.phi_sum, beta[j], gamma[j], reading)) as f64;
     }
 }
@@ -160,18 +213,18 @@ struct NormalEquations {
 }
 
 #[allow(clippy::too_many_arguments)] // the non-linear parameters, each used once
-fn normal_equations(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfReading) -> NormalEquations {
+fn normal_equations<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, reading: BrdfReading) -> NormalEquations {
     let n = 1 + beta.len();
     let mut e = NormalEquations { n, gram: vec![0.0; n * n], atb: [vec![0.0; n], vec![0.0; n], vec![0.0; n]], btb: [0.0; 3] };
     let mut row = [0.0f64; 8];
     for s in samples.iter().step_by(stride.max(1)) {
-        basis(&s.geo, beta, gamma, a, eta, reading, &mut row[..n]);
+        basis(s, beta, gamma, a, eta, reading, &mut row[..n]);
         for r in 0..n {
             for c in r..n {
                 e.gram[r * n + c] += row[r] * row[c];
             }
         }
-        let y = s.radiance.as_dvec3().to_array();
+        let y = s.radiance().as_dvec3().to_array();
         for ((atb, btb), y) in e.atb.iter_mut().zip(&mut e.btb).zip(y) {
             for (acc, x) in atb.iter_mut().zip(&row[..n]) {
                 *acc += x * y;
@@ -190,7 +243,7 @@ fn normal_equations(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f3
 /// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
 /// matrix. Returns (coefficients [channel][basis], Σ residual²).
 #[allow(clippy::too_many_arguments)] // the non-linear parameters, each used once
-fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
+fn solve_linear<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
     let NormalEquations { n, gram, atb, btb } = normal_equations(samples, stride, beta, gamma, a, eta, o.reading);
     let mut residual = 0.0;
     let mut coefficients: [Vec<f64>; 3] = Default::default();
@@ -206,9 +259,16 @@ fn solve_linear(samples: &[Target], stride: usize, beta: &[f32], gamma: &[f32], 
 /// stored): what `cpu::shading::texel_response` gives times the sample's weight and
 /// visibility (both already in `g.cos_i`).
 pub fn predict(p: &ClothParams, g: &Geo, reading: BrdfReading) -> Vec3 {
-    let common = cloth_fresnel(p.eta, g.cos_d) * cloth_shadowing(g.cos_phi_i, p.a) * g.cos_i;
+    predict_lobes(p, &Target { geo: *g, radiance: Vec3::ZERO }, reading)
+}
+
+/// [`predict`] with each lobe's factors in its own frame.
+pub fn predict_lobes<T: Sampled>(p: &ClothParams, s: &T, reading: BrdfReading) -> Vec3 {
+    let g = s.geo(0);
     let mut r = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX)) * g.cos_i;
-    for l in p.lobes() {
+    for (j, l) in p.lobes().iter().enumerate() {
+        let g = s.geo(j);
+        let common = cloth_fresnel(p.eta, g.cos_d) * cloth_shadowing(g.cos_phi_i, p.a) * g.cos_i;
         r += l.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX)) * (common * cloth_lobe_shape(g.theta_sum, g.phi_sum, l.beta, l.gamma, reading));
     }
     r
@@ -219,7 +279,7 @@ pub fn predict(p: &ClothParams, g: &Geo, reading: BrdfReading) -> Vec3 {
 /// non-negative least squares with a ridge pulling towards the cluster's values,
 /// λ = `ridge` · (mean diagonal of the Gram matrix) — a texel seen by few rays stays
 /// near its cluster, one seen by many follows its own data.
-pub fn refine_texel(samples: &[Target], cluster: &ClothParams, ridge: f64, reading: BrdfReading) -> ClothParams {
+pub fn refine_texel<T: Sampled>(samples: &[T], cluster: &ClothParams, ridge: f64, reading: BrdfReading) -> ClothParams {
     if samples.is_empty() {
         return *cluster;
     }
@@ -252,15 +312,16 @@ pub fn refine_texel(samples: &[Target], cluster: &ClothParams, ridge: f64, readi
 }
 
 /// Fits one cluster's BRDF (k_d, η fixed, a, and `lobes` lobes) to `samples`.
-pub fn fit_cluster(samples: &[Target], o: &ClusterFitOptions) -> ClusterFit {
-    let target2: f64 = samples.iter().map(|s| s.radiance.as_dvec3().length_squared()).sum();
+pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterFit {
+    let target2: f64 = samples.iter().map(|s| s.radiance().as_dvec3().length_squared()).sum();
     let n = o.lobes.clamp(1, 4);
     let o = &ClusterFitOptions { lobes: n, ..o.clone() };
     let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[]), residual2: target2, target2, evals: 0, samples: samples.len(), problem: Some(problem) };
     if samples.is_empty() {
         return fallback("no samples: the model shows none of this cluster's texels along any training ray".into());
     }
-    if !target2.is_finite() || samples.iter().any(|s| !(s.geo.cos_i.is_finite() && s.geo.theta_sum.is_finite() && s.geo.phi_sum.is_finite())) {
+    let finite = |g: &Geo| g.cos_i.is_finite() && g.theta_sum.is_finite() && g.phi_sum.is_finite();
+    if !target2.is_finite() || samples.iter().any(|s| !(0..n).all(|j| finite(s.geo(j)))) {
         return fallback("non-finite samples".into());
     }
     let stride = samples.len().div_ceil(o.search_samples.max(1));
@@ -294,44 +355,71 @@ pub fn fit_cluster(samples: &[Target], o: &ClusterFitOptions) -> ClusterFit {
     ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), problem: None }
 }
 
-/// Fits one cluster's BRDF and its frame offset ([`FrameOffset`], Eq. 8 with the frame
+/// Fits one cluster's BRDF and its frame offsets ([`FrameOffset`], Eq. 8 with the frame
 /// free): the BRDF in the texels' own frames first ([`fit_cluster`]), then alternately
-/// Nelder–Mead over the offset (s, τ, ψ, ρ) with the widths, a and η held and the
-/// linear parameters solved exactly at each trial, and a full refit in the offset
-/// frames — each round kept only if it lowers the residual over all samples.
+/// Nelder–Mead over the offsets (s, τ, ψ, ρ) — one shared by every lobe, or with
+/// `per_lobe` one per lobe (lobe 0's also the diffuse term's) — with the widths, a and
+/// η held and the linear parameters solved exactly at each trial, and a full refit in
+/// the offset frames; each round kept only if it lowers the residual over all samples.
 /// `rays[k]` says where `samples[k]` came from; `frames` are the texels' frames and
-/// `dirs` the pairs (ω_i, ω_o) the rays index.
-pub fn fit_cluster_framed(samples: &[Target], rays: &[TargetRay], frames: &[ClothFrame], dirs: &[(Vec3, Vec3)], o: &ClusterFitOptions, fo: &FrameFitOptions) -> (ClusterFit, FrameOffset) {
+/// `dirs` the pairs (ω_i, ω_o) the rays index. Returns the fit and one offset per lobe.
+pub fn fit_cluster_framed(samples: &[Target], rays: &[TargetRay], frames: &[ClothFrame], dirs: &[(Vec3, Vec3)], o: &ClusterFitOptions, fo: &FrameFitOptions) -> (ClusterFit, Vec<FrameOffset>) {
+    let n = o.lobes.clamp(1, LEVEL0_LOBES);
     let mut fit = fit_cluster(samples, o);
-    let mut offset = FrameOffset::IDENTITY;
+    let mut offsets = vec![FrameOffset::IDENTITY; n];
     let sound = rays.len() == samples.len() && rays.iter().all(|r| (r.texel as usize) < frames.len() && (r.dirs as usize) < dirs.len() && r.vis.is_finite());
     if fit.problem.is_some() || !sound || fo.rounds == 0 {
-        return (fit, offset);
+        return (fit, offsets);
     }
-    let regeo = |off: &FrameOffset, stride: usize| -> Vec<Target> {
+    let free = if fo.per_lobe { n } else { 1 };
+    // The search vector: `free` offsets of 4 numbers; a shared one applies to every lobe.
+    let expand = |x: &[f64]| -> Option<Vec<FrameOffset>> {
+        let v: Option<Vec<FrameOffset>> = x.chunks(4).map(FrameOffset::from_x).collect();
+        v.map(|v| if v.len() == 1 { vec![v[0]; n] } else { v })
+    };
+    let pack = |offs: &[FrameOffset]| -> Vec<f64> { offs[..free].iter().flat_map(|f| f.to_x()).collect() };
+    let regeo = |offs: &[FrameOffset], stride: usize| -> Vec<LobeTarget> {
+        let rot: Vec<_> = offs.iter().map(|o| o.rotation()).collect();
         samples
             .iter()
             .zip(rays)
             .step_by(stride.max(1))
             .map(|(s, r)| {
                 let (wi, wo) = dirs[r.dirs as usize];
-                Target { geo: Geo::new(&off.apply(&frames[r.texel as usize]), wi, wo, r.vis), radiance: s.radiance }
+                let frame = &frames[r.texel as usize];
+                let mut geos = [Geo::default(); LEVEL0_LOBES];
+                for j in 0..n {
+                    geos[j] = if j > 0 && offs[j] == offs[j - 1] { geos[j - 1] } else { Geo::new(&rot[j].apply(frame), wi, wo, r.vis) };
+                }
+                LobeTarget { geos, radiance: s.radiance }
             })
             .collect()
     };
-    let stride = samples.len().div_ceil(o.search_samples.max(1));
-    let nm = NelderMead { max_evals: fo.max_evals, ..Default::default() };
-    for _ in 0..fo.rounds {
+    let stride = samples.len().div_ceil(fo.search_samples.max(1));
+    let nm = NelderMead { max_evals: fo.max_evals * free, ..Default::default() };
+    let step: Vec<f64> = (0..free).flat_map(|_| [0.25, 0.12, 0.12, 0.12]).collect();
+    for round in 0..fo.rounds {
         let p = fit.params;
         let (beta, gamma): (Vec<f32>, Vec<f32>) = p.lobes().iter().map(|l| (l.beta, l.gamma)).unzip();
-        let objective = |x: &[f64]| match FrameOffset::from_x(x) {
-            Some(off) => solve_linear(&regeo(&off, stride), 1, &beta, &gamma, p.a, p.eta, o).map_or(f64::INFINITY, |(_, r)| r),
+        let objective = |x: &[f64]| match expand(x) {
+            Some(offs) => solve_linear(&regeo(&offs, stride), 1, &beta, &gamma, p.a, p.eta, o).map_or(f64::INFINITY, |(_, r)| r),
             None => f64::INFINITY,
         };
-        let Ok(m) = nelder_mead_restarts(objective, &offset.to_x(), &[0.25, 0.12, 0.12, 0.12], &nm, 1) else {
+        // Starts: the offsets so far; with lobes of their own, also each later lobe's
+        // tangent turned a quarter (warp and weft seen in one texel).
+        let mut starts = vec![pack(&offsets)];
+        if free > 1 && round == 0 {
+            let mut quarter = offsets.clone();
+            for q in quarter.iter_mut().skip(1) {
+                q.twist = std::f32::consts::FRAC_PI_2 * 0.98;
+            }
+            starts.push(pack(&quarter));
+        }
+        let best = starts.iter().filter_map(|x0| nelder_mead_restarts(objective, x0, &step, &nm, 1).ok()).min_by(|a, b| a.f.total_cmp(&b.f));
+        let Some(m) = best else {
             break;
         };
-        let Some(candidate) = FrameOffset::from_x(&m.x).filter(|c| *c != offset) else {
+        let Some(candidate) = expand(&m.x).filter(|c| *c != offsets) else {
             break;
         };
         let next = fit_cluster(&regeo(&candidate, 1), o);
@@ -339,9 +427,9 @@ pub fn fit_cluster_framed(samples: &[Target], rays: &[TargetRay], frames: &[Clot
             break;
         }
         fit = ClusterFit { evals: fit.evals + m.evals + next.evals, ..next };
-        offset = candidate;
+        offsets = candidate;
     }
-    (fit, offset)
+    (fit, offsets)
 }
 
 #[cfg(test)]
@@ -439,7 +527,8 @@ mod tests {
         }
         let o = ClusterFitOptions { max_evals: 800, restarts: 3, ..Default::default() };
         let plain = fit_cluster(&samples, &o);
-        let (framed, offset) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { max_evals: 600, rounds: 4 });
+        let (framed, offset) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { max_evals: 600, rounds: 4, per_lobe: false, search_samples: 6000 });
+        let offset = offset[0];
         eprintln!("plain {:.3}, framed {:.3}, offset {offset:?}", plain.relative_residual(), framed.relative_residual());
         assert!(plain.relative_residual() > 0.15, "{}", plain.relative_residual());
         assert!(framed.relative_residual() < 0.4 * plain.relative_residual(), "{} vs {}", framed.relative_residual(), plain.relative_residual());
@@ -451,6 +540,50 @@ mod tests {
         let exact: Vec<Target> = samples.iter().zip(&rays).map(|(s, r)| Target { geo: Geo::new(&right[r.texel as usize], dirs[r.dirs as usize].0, dirs[r.dirs as usize].1, 1.0), ..*s }).collect();
         let (fit, _) = fit_cluster_framed(&exact, &rays, &right, &dirs, &o, &FrameFitOptions::default());
         assert!(fit.relative_residual() < 0.01, "{}", fit.relative_residual());
+    }
+
+    /// Two lobes whose fibres cross (warp and weft in one texel: lobe 1's tangent a
+    /// quarter turn from lobe 0's): one shared frame cannot hold both highlights, a
+    /// frame per lobe can.
+    #[test]
+    fn lobes_with_their_own_frames_fit_crossed_fibres() {
+        let mut rng = crate::reference::rng::Rng::new(3, 1, 4);
+        let hemi = |rng: &mut crate::reference::rng::Rng| {
+            let z = 0.15 + 0.85 * rng.next_f32();
+            let p = std::f32::consts::TAU * rng.next_f32();
+            let s = (1.0 - z * z).sqrt();
+            Vec3::new(s * p.cos(), s * p.sin(), z)
+        };
+        let frames: Vec<ClothFrame> = (0..8).map(|k| cloth_frame(Vec3::new(0.05 * k as f32 - 0.2, 0.1, 1.0), Vec3::new(1.0, 0.05 * k as f32, 0.0))).collect();
+        let dirs: Vec<(Vec3, Vec3)> = (0..160)
+            .map(|_| {
+                let wi = hemi(&mut rng);
+                let wo = if rng.next_f32() < 0.6 { (Vec3::new(-wi.x, -wi.y, wi.z) + 0.25 * (hemi(&mut rng) - Vec3::Z)).normalize() } else { hemi(&mut rng) };
+                (wi, if wo.z < 0.05 { hemi(&mut rng) } else { wo })
+            })
+            .collect();
+        let warp = ClothLobe { k: Vec3::splat(0.5), beta: 0.12, gamma: 1.0 };
+        let weft = ClothLobe { k: Vec3::splat(0.4), beta: 0.2, gamma: 1.5 };
+        let quarter = FrameOffset { twist: std::f32::consts::FRAC_PI_2 * 0.9, ..FrameOffset::IDENTITY };
+        let (mut samples, mut rays) = (Vec::new(), Vec::new());
+        for (texel, f) in frames.iter().enumerate() {
+            for (d, &(wi, wo)) in dirs.iter().enumerate() {
+                let one = |l: ClothLobe, frame: &ClothFrame| cloth_response(&ClothParams::new(Vec3::ZERO, 1.5, 0.5, &[l]), frame, wi, wo, BrdfReading::Width);
+                let radiance = Vec3::splat(0.03) * f.n.dot(wi).max(0.0) + one(warp, f) + one(weft, &quarter.apply(f));
+                samples.push(Target { geo: Geo::new(f, wi, wo, 1.0), radiance });
+                rays.push(TargetRay { texel: texel as u32, dirs: d as u32, vis: 1.0 });
+            }
+        }
+        let o = ClusterFitOptions { max_evals: 800, restarts: 3, ..Default::default() };
+        let (shared, _) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { per_lobe: false, ..Default::default() });
+        let (own, offsets) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { per_lobe: true, rounds: 3, ..Default::default() });
+        eprintln!("shared {:.3}, per lobe {:.3}, offsets {offsets:?}", shared.relative_residual(), own.relative_residual());
+        assert!(shared.relative_residual() > 0.2, "{}", shared.relative_residual());
+        assert!(own.relative_residual() < 0.5 * shared.relative_residual(), "{} vs {}", own.relative_residual(), shared.relative_residual());
+        // The two lobes' tangents end up about a quarter turn apart.
+        let f = &frames[0];
+        let angle = offsets[0].apply(f).t.dot(offsets[1].apply(f).t).abs().acos().to_degrees();
+        assert!(angle > 60.0, "lobe tangents {angle}° apart");
     }
 
     #[test]

@@ -18,7 +18,7 @@
 //!   than they are.
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_fiber_frame};
-use fabric_runtime::cpu::shading::volume_factor;
+use fabric_runtime::cpu::shading::{texel_response, volume_factor};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError};
 use fabric_runtime::scene::{Light, Ray};
@@ -126,7 +126,7 @@ struct PixelRow {
 }
 
 /// Fits the flyaway clusters' k's with the surface fixed. `model` holds the surface
-/// (its level-0 BRDFs, `surface_of(texel)`) and flyaway lists whose table has
+/// (its level-0 BRDFs, each lobe in its frame) and flyaway lists whose table has
 /// `clusters` entries of shape `shape`; returns their fitted BRDFs and a report.
 #[allow(clippy::too_many_arguments)] // the fit's inputs, each used once
 pub fn fit_flyaways(
@@ -136,7 +136,6 @@ pub fn fit_flyaways(
     jitter_seed: u64,
     rays: u32,
     shadows: bool,
-    surface_of: &(dyn Fn(usize) -> ClothParams + Sync),
     shape: &ClothParams,
     clusters: usize,
     reading: BrdfReading,
@@ -157,12 +156,13 @@ pub fn fit_flyaways(
         }
         out
     };
+    let brdfs: Vec<_> = (0..texels).map(|j| model.levels[0].texel_brdf((j % w) as u32, (j / w) as u32)).collect();
     let mut rows: Vec<PixelRow> = Vec::new();
     for (c, pair) in training.pairs.iter().enumerate() {
         let lights = [Light::directional(pair.wi, Vec3::ONE)];
         let render = CpuRenderOptions { periodic: true, shadows: if shadows { ShadowMode::On } else { ShadowMode::Off }, ..Default::default() };
         let Ok(scene) = Scene::for_rays(model, &lights, render) else { continue };
-        let frames: Vec<_> = (0..texels).map(|j| model.levels[0].texel_brdf((j % w) as u32, (j / w) as u32).frames[0]).collect();
+
         let image = &training.images[c];
         let batch: Vec<PixelRow> = (0..texels)
             .into_par_iter()
@@ -186,8 +186,9 @@ pub fn fit_flyaways(
                     if let Some(hit) = probe.surface {
                         let t = hit.texel.0 as usize + w * hit.texel.1 as usize;
                         let factor = if model.meta.volumetric { volume_factor(pair.wi, pair.wo) } else { 1.0 };
-                        let g = Geo::new(&frames[t], pair.wi, pair.wo, hit.visibility * factor);
-                        surface += hit.transmittance / rays as f32 * predict(&surface_of(t), &g, reading);
+                        // The texel as the model holds it: each lobe in its own frame.
+                        let b = &brdfs[t];
+                        surface += hit.transmittance * hit.visibility * factor / rays as f32 * texel_response(b, pair.wi, pair.wo, reading);
                     }
                 }
                 crossed.then(|| PixelRow { target: image.pixels[j], residual: image.pixels[j] - surface, row })

@@ -45,8 +45,10 @@ impl Default for FrameOffset {
 
 impl FrameOffset {
     pub const IDENTITY: FrameOffset = FrameOffset { slope: 1.0, rise: 0.0, twist: 0.0, roll: 0.0 };
-    /// Largest |rise|, |twist|, |roll| searched (radians), and the slope scale's range.
+    /// Largest |rise| and |roll| searched (radians), largest |twist| (a quarter turn:
+    /// the tangent is an axis, so ±π/2 covers every direction), the slope's range.
     pub const ANGLE_MAX: f32 = 1.0;
+    pub const TWIST_MAX: f32 = std::f32::consts::FRAC_PI_2;
     pub const SLOPE_RANGE: [f32; 2] = [0.0, 2.0];
 
     pub fn is_identity(&self) -> bool {
@@ -60,25 +62,48 @@ impl FrameOffset {
 
     pub fn from_x(x: &[f64]) -> Option<FrameOffset> {
         let o = FrameOffset { slope: x[0] as f32, rise: x[1] as f32, twist: x[2] as f32, roll: x[3] as f32 };
-        let inside = (Self::SLOPE_RANGE[0]..=Self::SLOPE_RANGE[1]).contains(&o.slope) && [o.rise, o.twist, o.roll].iter().all(|a| a.abs() <= Self::ANGLE_MAX);
+        let inside = (Self::SLOPE_RANGE[0]..=Self::SLOPE_RANGE[1]).contains(&o.slope) && [o.rise, o.roll].iter().all(|a| a.abs() <= Self::ANGLE_MAX) && o.twist.abs() <= Self::TWIST_MAX;
         inside.then_some(o)
     }
 
     /// The offset frame of `f` (module docs).
     pub fn apply(&self, f: &ClothFrame) -> ClothFrame {
-        if self.is_identity() {
+        self.rotation().apply(f)
+    }
+
+    /// The offset with its sines and cosines taken once (a search applies one offset
+    /// to thousands of frames).
+    pub fn rotation(&self) -> OffsetRotation {
+        OffsetRotation { identity: self.is_identity(), slope: self.slope, twist: self.twist.sin_cos(), rise: self.rise.sin_cos(), roll: self.roll.sin_cos() }
+    }
+}
+
+/// A [`FrameOffset`] ready to apply: (sin, cos) of each angle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OffsetRotation {
+    identity: bool,
+    slope: f32,
+    twist: (f32, f32),
+    rise: (f32, f32),
+    roll: (f32, f32),
+}
+
+impl OffsetRotation {
+    /// The offset frame of `f` (module docs).
+    pub fn apply(&self, f: &ClothFrame) -> ClothFrame {
+        if self.identity {
             return *f;
         }
         // Slope scaling in tile space; a normal at or below the horizon keeps its own.
         let n_s = if f.n.z > 1e-4 { Vec3::new(self.slope * f.n.x, self.slope * f.n.y, f.n.z).normalize() } else { f.n };
         let base = cloth_frame(n_s, f.t);
         let (n, t, b) = (base.n, base.t, base.b);
-        let (st, ct) = self.twist.sin_cos();
+        let (st, ct) = self.twist;
         let t1 = ct * t + st * b;
-        let (sr, cr) = self.rise.sin_cos();
+        let (sr, cr) = self.rise;
         let t2 = cr * t1 + sr * n;
         let n2 = cr * n - sr * t1;
-        let (sl, cl) = self.roll.sin_cos();
+        let (sl, cl) = self.roll;
         let n3 = cl * n2 + sl * n2.cross(t2);
         cloth_frame(n3, t2)
     }
@@ -125,7 +150,8 @@ mod tests {
     #[test]
     fn the_box_is_enforced() {
         assert!(FrameOffset::from_x(&[2.5, 0.0, 0.0, 0.0]).is_none());
-        assert!(FrameOffset::from_x(&[1.0, 0.0, -1.2, 0.0]).is_none());
+        assert!(FrameOffset::from_x(&[1.0, 0.0, -1.6, 0.0]).is_none());
+        assert!(FrameOffset::from_x(&[1.0, 1.2, 0.0, 0.0]).is_none());
         assert!(FrameOffset::from_x(&[0.5, 0.2, -0.3, 0.1]).is_some());
     }
 }

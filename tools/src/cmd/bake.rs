@@ -95,6 +95,10 @@ pub struct BakeArgs {
     /// cluster with its BRDF (slope, rise, twist, roll: Eq. 8 with the frame free).
     #[arg(long)]
     pub no_frame_fit: bool,
+    /// One frame offset per cluster shared by its lobes, instead of one per lobe (warp
+    /// and weft seen in one texel; lobe 0's is also the diffuse term's).
+    #[arg(long)]
+    pub shared_frame: bool,
     /// Fit without the height field's shadowing of the light.
     #[arg(long)]
     pub no_shadows: bool,
@@ -171,6 +175,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.fit.fit_eta = args.fit_eta;
     if args.no_frame_fit {
         options.frame_fit = None;
+    }
+    if let Some(f) = options.frame_fit.as_mut() {
+        f.per_lobe = !args.shared_frame;
     }
     options.fit.reading = match args.reading {
         ReadingArg::Bounded => BrdfReading::Bounded,
@@ -254,16 +261,16 @@ pub fn run(args: BakeArgs) -> Result<()> {
         );
     }
     println!("kept K = {}; training-render noise floor {:.2}%", r.k, 100.0 * r.noise_floor);
-    let moved: Vec<_> = r.frame_offsets.iter().filter(|o| !o.is_identity()).collect();
+    let moved: Vec<_> = r.frame_offsets.iter().flatten().filter(|o| !o.is_identity()).collect();
     if !moved.is_empty() {
         let median = |mut v: Vec<f32>| {
             v.sort_by(f32::total_cmp);
             v[v.len() / 2]
         };
         println!(
-            "frame fit: {} of {} clusters' frames moved (median slope scale {:.2}, |rise| {:.1}°, |twist| {:.1}°, |roll| {:.1}°)",
+            "frame fit: {} of {} offsets moved (median slope scale {:.2}, |rise| {:.1}°, |twist| {:.1}°, |roll| {:.1}°)",
             moved.len(),
-            r.frame_offsets.len(),
+            r.frame_offsets.iter().map(|o| o.len()).sum::<usize>(),
             median(moved.iter().map(|o| o.slope).collect()),
             median(moved.iter().map(|o| o.rise.abs().to_degrees()).collect()),
             median(moved.iter().map(|o| o.twist.abs().to_degrees()).collect()),
