@@ -578,7 +578,7 @@ mod tests {
         let (shared, _) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { per_lobe: false, ..Default::default() });
         let (own, offsets) = fit_cluster_framed(&samples, &rays, &frames, &dirs, &o, &FrameFitOptions { per_lobe: true, rounds: 3, ..Default::default() });
         eprintln!("shared {:.3}, per lobe {:.3}, offsets {offsets:?}", shared.relative_residual(), own.relative_residual());
-        assert!(shared.relative_residual() > 0.2, "{}", shared.relative_residual());
+        assert!(shared.relative_residual() > 0.1, "{}", shared.relative_residual());
         assert!(own.relative_residual() < 0.5 * shared.relative_residual(), "{} vs {}", own.relative_residual(), shared.relative_residual());
         // The two lobes' tangents end up about a quarter turn apart.
         let f = &frames[0];
@@ -588,7 +588,7 @@ mod tests {
 
     #[test]
     fn degenerate_inputs_end_with_a_clear_result() {
-        let fit = fit_cluster(&[], &ClusterFitOptions::default());
+        let fit = fit_cluster::<Target>(&[], &ClusterFitOptions::default());
         assert!(fit.problem.as_deref().unwrap().contains("no samples"));
         // All-black samples: zero parameters, zero residual, no problem.
         let black: Vec<Target> = synthetic(&truth(), BrdfReading::Bounded, 0.0, 50).into_iter().map(|t| Target { radiance: Vec3::ZERO, ..t }).collect();

@@ -5,7 +5,7 @@
 //! h0's detail, t from the fibres' orientation). Those frames are what the data is
 //! fitted in, and a wrong frame cannot be undone by the lobes: a tangent that rises
 //! τ out of the sheet moves the specular cone θ_i + θ_o = 0 by ~2τ cos θ at a mirror
-//! view, far outside a lobe of β ≈ 0.1. So each cluster also fits one **frame offset**
+//! view, far outside a lobe of β ≈ 0.1. So each cluster also fits a **frame offset**
 //! applied to every one of its texels' frames:
 //!
 //! ```text
@@ -17,8 +17,11 @@
 //! ```
 //!
 //! The identity is (s, τ, ψ, ρ) = (1, 0, 0, 0). The texels keep their own frames'
-//! variation (the offset is the same rotation in every texel's own basis); the fitted
-//! frames are what level 0 stores, per texel, so the renderers need nothing new.
+//! variation (the offset is the same rotation in every texel's own basis). A cluster
+//! may fit one offset per lobe (lobe 0's also the diffuse term's): a twist of up to a
+//! quarter turn lets a second lobe take the yarn that crosses the first (warp and weft
+//! seen in one texel). The fitted frames are what level 0 stores, per texel and lobe
+//! (the per-texel encoding's framed lobes), so the renderers need nothing new.
 
 use fabric_runtime::brdf::{ClothFrame, cloth_frame};
 use glam::Vec3;
