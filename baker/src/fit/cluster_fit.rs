@@ -437,15 +437,17 @@ mod tests {
     use super::*;
     use fabric_runtime::brdf::{cloth_frame, cloth_response};
 
+    /// A direction of the upper hemisphere at least 8.6° above the horizon.
+    fn hemi(rng: &mut crate::reference::rng::Rng) -> Vec3 {
+        let z = 0.15 + 0.85 * rng.next_f32();
+        let p = std::f32::consts::TAU * rng.next_f32();
+        let s = (1.0 - z * z).sqrt();
+        Vec3::new(s * p.cos(), s * p.sin(), z)
+    }
+
     /// Samples of a known BRDF over random directions in random frames.
     fn synthetic(params: &ClothParams, reading: BrdfReading, noise: f32, count: usize) -> Vec<Target> {
         let mut rng = crate::reference::rng::Rng::new(5, 6, 7);
-        let hemi = |rng: &mut crate::reference::rng::Rng| {
-            let z = 0.15 + 0.85 * rng.next_f32();
-            let p = std::f32::consts::TAU * rng.next_f32();
-            let s = (1.0 - z * z).sqrt();
-            Vec3::new(s * p.cos(), s * p.sin(), z)
-        };
         (0..count)
             .map(|_| {
                 let n = (Vec3::Z + 0.3 * (hemi(&mut rng) - Vec3::Z * 0.9)).normalize();
@@ -503,12 +505,6 @@ mod tests {
         let params = truth();
         let truth_offset = FrameOffset { slope: 0.6, rise: 0.25, twist: -0.3, roll: 0.1 };
         let mut rng = crate::reference::rng::Rng::new(9, 8, 7);
-        let hemi = |rng: &mut crate::reference::rng::Rng| {
-            let z = 0.15 + 0.85 * rng.next_f32();
-            let p = std::f32::consts::TAU * rng.next_f32();
-            let s = (1.0 - z * z).sqrt();
-            Vec3::new(s * p.cos(), s * p.sin(), z)
-        };
         let frames: Vec<ClothFrame> = (0..16).map(|k| cloth_frame((Vec3::Z + 0.4 * (hemi(&mut rng) - Vec3::Z * 0.9)).normalize(), Vec3::new(1.0, 0.3 * (k as f32 / 16.0 - 0.5), 0.1))).collect();
         let dirs: Vec<(Vec3, Vec3)> = (0..64)
             .map(|_| {
@@ -548,12 +544,6 @@ mod tests {
     #[test]
     fn lobes_with_their_own_frames_fit_crossed_fibres() {
         let mut rng = crate::reference::rng::Rng::new(3, 1, 4);
-        let hemi = |rng: &mut crate::reference::rng::Rng| {
-            let z = 0.15 + 0.85 * rng.next_f32();
-            let p = std::f32::consts::TAU * rng.next_f32();
-            let s = (1.0 - z * z).sqrt();
-            Vec3::new(s * p.cos(), s * p.sin(), z)
-        };
         let frames: Vec<ClothFrame> = (0..8).map(|k| cloth_frame(Vec3::new(0.05 * k as f32 - 0.2, 0.1, 1.0), Vec3::new(1.0, 0.05 * k as f32, 0.0))).collect();
         let dirs: Vec<(Vec3, Vec3)> = (0..160)
             .map(|_| {
