@@ -35,7 +35,7 @@ use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
-use crate::fit::samples::{Geo, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -772,12 +772,7 @@ fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p Cloth
 /// left zero).
 fn sample_geo(s: &Sample, frames: &[TexelFrames], dirs: &[(Vec3, Vec3)]) -> LobeTarget {
     let (wi, wo) = dirs[s.dirs as usize];
-    let f = &frames[s.hit as usize];
-    let mut geos = [Geo::default(); LEVEL0_LOBES];
-    for l in 0..LEVEL0_LOBES {
-        geos[l] = if l > 0 && f[l] == f[l - 1] { geos[l - 1] } else { Geo::new(&f[l], wi, wo, s.vis) };
-    }
-    LobeTarget { geos, radiance: Vec3::ZERO }
+    LobeTarget::in_frames(&frames[s.hit as usize], wi, wo, s.vis, Vec3::ZERO)
 }
 
 /// 4×4 block means of a texel-order image (partial blocks at the edges included).

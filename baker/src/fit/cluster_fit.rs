@@ -106,6 +106,22 @@ pub struct LobeTarget {
     pub radiance: Vec3,
 }
 
+impl LobeTarget {
+    /// The factors of (`wi`, `wo`) with lobe j in `frames[j]` (lobes past the end in the
+    /// last frame; equal neighbouring frames computed once), visibility `vis`.
+    pub fn in_frames(frames: &[ClothFrame], wi: Vec3, wo: Vec3, vis: f32, radiance: Vec3) -> LobeTarget {
+        let mut geos = [Geo::default(); LEVEL0_LOBES];
+        for j in 0..LEVEL0_LOBES {
+            geos[j] = match frames.get(j) {
+                Some(f) if j == 0 || frames[j - 1] != *f => Geo::new(f, wi, wo, vis),
+                _ if j > 0 => geos[j - 1],
+                _ => Geo::default(),
+            };
+        }
+        LobeTarget { geos, radiance }
+    }
+}
+
 impl Sampled for LobeTarget {
     #[inline]
     fn geo(&self, lobe: usize) -> &Geo {
@@ -387,11 +403,11 @@ pub fn fit_cluster_framed(samples: &[Target], rays: &[TargetRay], frames: &[Clot
             .map(|(s, r)| {
                 let (wi, wo) = dirs[r.dirs as usize];
                 let frame = &frames[r.texel as usize];
-                let mut geos = [Geo::default(); LEVEL0_LOBES];
+                let mut lobe_frames = [*frame; LEVEL0_LOBES];
                 for j in 0..n {
-                    geos[j] = if j > 0 && offs[j] == offs[j - 1] { geos[j - 1] } else { Geo::new(&rot[j].apply(frame), wi, wo, r.vis) };
+                    lobe_frames[j] = if j > 0 && offs[j] == offs[j - 1] { lobe_frames[j - 1] } else { rot[j].apply(frame) };
                 }
-                LobeTarget { geos, radiance: s.radiance }
+                LobeTarget::in_frames(&lobe_frames[..n], wi, wo, r.vis, s.radiance)
             })
             .collect()
     };
@@ -443,6 +459,18 @@ mod tests {
         let p = std::f32::consts::TAU * rng.next_f32();
         let s = (1.0 - z * z).sqrt();
         Vec3::new(s * p.cos(), s * p.sin(), z)
+    }
+
+    /// `count` pairs (ω_i, ω_o): a fraction `mirror` near the mirror direction about +Z
+    /// (jittered by `spread`), the rest anywhere in the upper hemisphere.
+    fn near_mirror_pairs(rng: &mut crate::reference::rng::Rng, count: usize, mirror: f32, spread: f32) -> Vec<(Vec3, Vec3)> {
+        (0..count)
+            .map(|_| {
+                let wi = hemi(rng);
+                let wo = if rng.next_f32() < mirror { (Vec3::new(-wi.x, -wi.y, wi.z) + spread * (hemi(rng) - Vec3::Z)).normalize() } else { hemi(rng) };
+                (wi, if wo.z < 0.05 { hemi(rng) } else { wo })
+            })
+            .collect()
     }
 
     /// Samples of a known BRDF over random directions in random frames.
@@ -506,13 +534,7 @@ mod tests {
         let truth_offset = FrameOffset { slope: 0.6, rise: 0.25, twist: -0.3, roll: 0.1 };
         let mut rng = crate::reference::rng::Rng::new(9, 8, 7);
         let frames: Vec<ClothFrame> = (0..16).map(|k| cloth_frame((Vec3::Z + 0.4 * (hemi(&mut rng) - Vec3::Z * 0.9)).normalize(), Vec3::new(1.0, 0.3 * (k as f32 / 16.0 - 0.5), 0.1))).collect();
-        let dirs: Vec<(Vec3, Vec3)> = (0..64)
-            .map(|_| {
-                let wi = hemi(&mut rng);
-                let wo = if rng.next_f32() < 0.5 { (Vec3::new(-wi.x, -wi.y, wi.z) + 0.3 * (hemi(&mut rng) - Vec3::Z)).normalize() } else { hemi(&mut rng) };
-                (wi, if wo.z < 0.05 { hemi(&mut rng) } else { wo })
-            })
-            .collect();
+        let dirs = near_mirror_pairs(&mut rng, 64, 0.5, 0.3);
         let (mut samples, mut rays) = (Vec::new(), Vec::new());
         for (texel, f) in frames.iter().enumerate() {
             for (d, &(wi, wo)) in dirs.iter().enumerate() {
@@ -545,13 +567,7 @@ mod tests {
     fn lobes_with_their_own_frames_fit_crossed_fibres() {
         let mut rng = crate::reference::rng::Rng::new(3, 1, 4);
         let frames: Vec<ClothFrame> = (0..8).map(|k| cloth_frame(Vec3::new(0.05 * k as f32 - 0.2, 0.1, 1.0), Vec3::new(1.0, 0.05 * k as f32, 0.0))).collect();
-        let dirs: Vec<(Vec3, Vec3)> = (0..160)
-            .map(|_| {
-                let wi = hemi(&mut rng);
-                let wo = if rng.next_f32() < 0.6 { (Vec3::new(-wi.x, -wi.y, wi.z) + 0.25 * (hemi(&mut rng) - Vec3::Z)).normalize() } else { hemi(&mut rng) };
-                (wi, if wo.z < 0.05 { hemi(&mut rng) } else { wo })
-            })
-            .collect();
+        let dirs = near_mirror_pairs(&mut rng, 160, 0.6, 0.25);
         let warp = ClothLobe { k: Vec3::splat(0.5), beta: 0.12, gamma: 1.0 };
         let weft = ClothLobe { k: Vec3::splat(0.4), beta: 0.2, gamma: 1.5 };
         let quarter = FrameOffset { twist: std::f32::consts::FRAC_PI_2 * 0.9, ..FrameOffset::IDENTITY };
