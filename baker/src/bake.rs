@@ -35,7 +35,7 @@ use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
-use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::samples::{Geo, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -69,6 +69,9 @@ pub struct BakeOptions {
     pub probe_rays: u32,
     /// Fit (and render by default) with the height field's shadowing of the light.
     pub shadows: bool,
+    /// Weight each training pair's samples by the inverse of its image's RMS
+    /// ([`TrainingImages::pair_weights`]).
+    pub pair_weights: bool,
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o).
     pub volumetric: bool,
     pub surface_mask: SurfaceMask,
@@ -135,7 +138,11 @@ impl Default for BakeOptions {
             pairs: PairOptions::default(),
             spp: 32,
             probe_rays: 2,
-            shadows: true,
+            // Measured (FIT_MEASUREMENTS.md, fast settings without flyaways): held-out
+            // satin 43.5% with shadows, 40.1% without; twill 28.3% and 28.2%. The smooth
+            // h shadows grazing light that reaches a fuzzy yarn's crests in the volume.
+            shadows: false,
+            pair_weights: true,
             // Measured worse on held-out views (FIT_MEASUREMENTS.md): twill 29.6% vs
             // 28.3%, satin 44.7% vs 42.2%, though it mends the mirror views' fall-off.
             volumetric: false,
@@ -465,7 +472,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let dense_set = training_pairs(&PairOptions { count: options.dense_pairs.max(8), seed: mix64(options.seed ^ 0x64656e7365), ..options.pairs.clone() });
     // Every sample's pair: the training pairs, then the dense ones.
     let dirs: Vec<(Vec3, Vec3)> = pairs.iter().chain(&dense_set).map(|p| (p.wi, p.wo)).collect();
-    let ray_of = |s: &Sample| TargetRay { texel: s.hit, dirs: s.dirs, vis: s.vis };
+    // Each training pair's weight s_p (1 for the dense pairs): a sample's row and
+    // target are both scaled by it, its visibility carrying the scale into every frame.
+    let pair_w: Vec<f32> = if options.pair_weights { training.pair_weights() } else { Vec::new() };
+    let pw = |s: &Sample| pair_w.get(s.dirs as usize).copied().unwrap_or(1.0);
+    let weighted = |s: &Sample| Sample { vis: s.vis * pw(s), geo: Geo { cos_i: s.geo.cos_i * pw(s), ..s.geo }, ..*s };
+    let ray_of = |s: &Sample| TargetRay { texel: s.hit, dirs: s.dirs, vis: s.vis * pw(s) };
     let mut dense_cache: HashMap<u32, Vec<Sample>> = HashMap::new();
     let mut dense_values: Vec<Vec3> = Vec::new();
     let dense_seed = mix64(options.seed ^ 0x6d65_6173);
@@ -510,7 +522,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let mut targets: Vec<(Vec<Target>, Vec<TargetRay>)> = vec![(Vec::new(), Vec::new()); k];
         for s in &samples {
             let t = &mut targets[cluster[s.hit as usize] as usize];
-            t.0.push(Target { geo: s.geo, radiance: target_of(s) });
+            t.0.push(Target { geo: weighted(s).geo, radiance: target_of(s) * pw(s) });
             t.1.push(ray_of(s));
         }
         for &rep in &reps {
@@ -570,7 +582,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let bar = begin_stage(progress, "per-texel refinement", 1);
             let mut per_texel: Vec<Vec<LobeTarget>> = vec![Vec::new(); texels];
             for s in &samples {
-                per_texel[s.hit as usize].push(LobeTarget { radiance: target_of(s), ..geo_of(s) });
+                per_texel[s.hit as usize].push(LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) });
             }
             let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);

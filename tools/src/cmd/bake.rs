@@ -99,9 +99,14 @@ pub struct BakeArgs {
     /// and weft seen in one texel; lobe 0's is also the diffuse term's).
     #[arg(long)]
     pub shared_frame: bool,
-    /// Fit without the height field's shadowing of the light.
+    /// Fit (and render) with the height field's shadowing of the light (off by default:
+    /// measured worse on held-out views, baker/FIT_MEASUREMENTS.md).
     #[arg(long)]
-    pub no_shadows: bool,
+    pub shadows: bool,
+    /// Weigh every training pair alike in the fit, instead of each by the inverse of its
+    /// image's brightness (each pair's error relative to itself, as held-out views count).
+    #[arg(long)]
+    pub unweighted_pairs: bool,
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).
     #[arg(long)]
     pub volumetric: bool,
@@ -168,7 +173,7 @@ pub struct BakeArgs {
 }
 
 pub fn run(args: BakeArgs) -> Result<()> {
-    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: !args.no_shadows, volumetric: args.volumetric, ..Default::default() };
+    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: args.shadows, pair_weights: !args.unweighted_pairs, volumetric: args.volumetric, ..Default::default() };
     options.pairs.count = args.pairs;
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;
