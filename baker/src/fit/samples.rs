@@ -181,3 +181,30 @@ pub fn texel_jitter(seed: u64, texel: u32, pair: u32, s: u32) -> (f32, f32) {
     let key = mix64(seed ^ mix64(texel as u64));
     Rng::new(key, pair as u64, s as u64).next_2d()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flat(value: f32) -> Image {
+        let mut im = Image::new(4, 4);
+        im.pixels.iter_mut().for_each(|p| *p = Vec3::splat(value));
+        im
+    }
+
+    fn images(values: &[f32]) -> TrainingImages {
+        TrainingImages { pairs: Vec::new(), images: values.iter().map(|&v| flat(v)).collect(), noise: 0.0, spp: 2, seed: 1, paths: 0, seconds: 0.0 }
+    }
+
+    #[test]
+    fn pair_weights_make_each_pair_count_relative_to_its_brightness() {
+        let w = images(&[0.1, 0.4, 0.0]).pair_weights();
+        // Weighted, each pair's image has the same RMS: s_p · R_p is one value.
+        assert!((w[0] * 0.1 - w[1] * 0.4).abs() < 1e-6, "{w:?}");
+        assert!((w[0] / w[1] - 4.0).abs() < 1e-5, "{w:?}");
+        // A black image keeps weight 1 (nothing to be relative to), and adds nothing.
+        assert_eq!(w[2], 1.0);
+        // Equal images weigh 1 each: the weights are scaled to the set's own RMS.
+        assert!(images(&[0.3, 0.3]).pair_weights().iter().all(|v| (v - 1.0).abs() < 1e-6));
+    }
+}
