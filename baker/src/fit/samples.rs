@@ -45,8 +45,9 @@ impl TrainingImages {
     /// counts each pair's error relative to its own brightness, as the held-out figure
     /// (a relative RMSE per view, averaged over views) does; unweighted, the dim
     /// off-specular pairs hardly count beside the bright mirror ones. 1 where a pair's
-    /// image is black. Measured (FIT_MEASUREMENTS.md): it helps satin and costs twill
-    /// and felt at full settings, so it is off by default (`fabric bake --pair-weights`).
+    /// image is black. Measured (FIT_MEASUREMENTS.md): it helps silk and satin and costs
+    /// twill, plain and felt a point or less; on by default (`fabric bake
+    /// --unweighted-pairs` turns it off).
     pub fn pair_weights(&self) -> Vec<f32> {
         let rms: Vec<f64> = self.images.iter().map(|im| (im.pixels.iter().map(|p| p.as_dvec3().length_squared()).sum::<f64>() / im.pixels.len().max(1) as f64).sqrt()).collect();
         let all = (rms.iter().map(|r| r * r).sum::<f64>() / rms.len().max(1) as f64).sqrt();

@@ -103,11 +103,11 @@ pub struct BakeArgs {
     /// measured worse on held-out views, baker/FIT_MEASUREMENTS.md).
     #[arg(long)]
     pub shadows: bool,
-    /// Weight each training pair by the inverse of its image's brightness (each pair's
-    /// error relative to itself, as held-out views count; measured worse on most
-    /// presets, baker/FIT_MEASUREMENTS.md).
+    /// Weigh every training pair alike in the fit, instead of each by the inverse of its
+    /// image's brightness (each pair's error relative to itself, as held-out views count;
+    /// baker/FIT_MEASUREMENTS.md measures both).
     #[arg(long)]
-    pub pair_weights: bool,
+    pub unweighted_pairs: bool,
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).
     #[arg(long)]
     pub volumetric: bool,
@@ -174,7 +174,7 @@ pub struct BakeArgs {
 }
 
 pub fn run(args: BakeArgs) -> Result<()> {
-    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: args.shadows, pair_weights: args.pair_weights, volumetric: args.volumetric, ..Default::default() };
+    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: args.shadows, pair_weights: !args.unweighted_pairs, volumetric: args.volumetric, ..Default::default() };
     options.pairs.count = args.pairs;
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;
