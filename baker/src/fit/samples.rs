@@ -45,8 +45,8 @@ impl TrainingImages {
     /// counts each pair's error relative to its own brightness, as the held-out figure
     /// (a relative RMSE per view, averaged over views) does; unweighted, the dim
     /// off-specular pairs hardly count beside the bright mirror ones. 1 where a pair's
-    /// image is black. Measured (FIT_MEASUREMENTS.md): it helps silk and satin and costs
-    /// twill, plain and felt a point or less; on by default (`fabric bake
+    /// image is black. Measured (FIT_MEASUREMENTS.md): it helps silk (14 points) and satin
+    /// (1) and costs twill, plain and felt 0.5–1.7; on by default (`fabric bake
     /// --unweighted-pairs` turns it off).
     pub fn pair_weights(&self) -> Vec<f32> {
         let rms: Vec<f64> = self.images.iter().map(|im| (im.pixels.iter().map(|p| p.as_dvec3().length_squared()).sum::<f64>() / im.pixels.len().max(1) as f64).sqrt()).collect();
