@@ -146,6 +146,32 @@ fn a_coarse_voxel_reaching_below_the_surface_has_its_coverage_in_its_free_part()
 }
 
 #[test]
+fn coarse_flyaways_count_what_a_level_0_ray_meets() {
+    // Voxel depth 0.0125, the surface at depth 0.03. Column (0, 0): a fibre along x at
+    // layer 0 over one along y at layer 1 (both opaque, both above the surface); column
+    // (1, 1): a fibre at layer 3, [0.0375, 0.05], wholly below the surface.
+    let mut m = uniform_model(2, 2, 1, flat_tile(8), |_, _| 0.03, &plain_params(), Vec3::Z, Vec3::X).unwrap();
+    let v = |i, j, depth, t: Vec3| (i, j, FlyawayInput { depth, alpha: 1.0, tangent: t, param: 0 });
+    add_flyaways(&mut m, 0, &[v(0, 0, 0, Vec3::X), v(0, 0, 1, Vec3::Y), v(1, 1, 3, Vec3::Y)], &plain_params()).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let f = out.levels[1].flyaways.as_ref().unwrap();
+    // The buried fibre makes no coarse voxel (its coarse voxel k = 1 would hold only it).
+    let depths: Vec<u16> = f.list(0).map(|n| n.depth).collect();
+    assert_eq!(depths, vec![0], "only the voxel of the two visible fibres");
+    // Seen from above the y fibre is hidden by the x fibre: the coarse voxel is the x
+    // fibre alone, one axis, no spread.
+    let node = f.heads[0] as usize;
+    let axes = f.node_axes(node);
+    assert_eq!(axes.weights, [1.0, 0.0, 0.0, 0.0], "{axes:?}");
+    assert!(axes.axes[0].dot(Vec3::X).abs() > 0.999, "{axes:?}");
+    // It hides a quarter of the view, as level 0's column does.
+    assert!(f.nodes[node].alpha() > 0.2, "{}", f.nodes[node].alpha());
+    // The positions' mean (Coverage::Volume) still counts every voxel: two coarse voxels.
+    let (vol, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), coverage: Coverage::Volume, ..Default::default() }, &NoProgress).unwrap();
+    assert_eq!(vol.levels[1].flyaways.as_ref().unwrap().nodes.len(), 2);
+}
+
+#[test]
 fn coarse_flyaways_store_their_fibres_spread_and_one_fibre_has_none() {
     // Column (0, 0): two fibres 60° apart in one coarse voxel; column (1, 1): one fibre.
     let mut m = uniform_model(4, 4, 1, flat_tile(8), |_, _| 0.1, &plain_params(), Vec3::Z, Vec3::X).unwrap();
