@@ -44,11 +44,17 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     // One held-out view (orthographic, 5° or more from every training pair).
     let pair = held_out_pairs(&r.pairs, 1, 60.0, 5.0, 11)[0];
     let medium = reference_medium(&volume, Default::default()).unwrap();
-    let (e, _) = evaluate_view(&volume, &medium, &b.model, &pair, ViewKind::Orthographic, 48, 16, 5).unwrap();
+    let (e, _) = evaluate_view(&volume, &medium, &b.model, &pair, ViewKind::Orthographic, 48, 16, 5, 5.0).unwrap();
     eprintln!("held-out {:?}: block error {:.3}, pixel {:.3}, reference noise {:.3}", e.pair, e.block_error, e.pixel_error, e.reference_noise);
     // Measured 0.2–0.3 at this size (the fit's settings are minimal); a model with its
     // BRDF zeroed scores 1.0, one with k scaled ×2 scores ~1.0.
     assert!(e.block_error < 0.45, "held-out block error {}", e.block_error);
+    // The yardstick: the truth lit 5° off differs from itself, measurably and less than a
+    // black image would (1.0).
+    let turned = e.light_turned_error.expect("measured with a 5° turn");
+    eprintln!("reference with the light turned 5°: {turned:.3}");
+    assert!(turned.is_finite() && turned > 0.0 && turned < 0.5, "{turned}");
+    assert!(e.light_turn_deg == 5.0);
 }
 
 #[test]
@@ -119,7 +125,7 @@ fn a_bsdf_bake_fits_the_light_that_comes_through() {
     let pair = fabric_baker::fit::directions::backlit_pairs(&held_out_pairs(&b.report.pairs, 1, 50.0, 5.0, 13))[0];
     assert!(pair.wi.z < 0.0);
     let medium = reference_medium(&volume, Default::default()).unwrap();
-    let (e, _) = evaluate_view(&volume, &medium, &b.model, &pair, ViewKind::Orthographic, 32, 32, 7).unwrap();
+    let (e, _) = evaluate_view(&volume, &medium, &b.model, &pair, ViewKind::Orthographic, 32, 32, 7, 0.0).unwrap();
     let mut doubled = b.model.clone();
     for l in doubled.levels.iter_mut() {
         for r in l.transmission.as_mut().unwrap() {
@@ -129,7 +135,7 @@ fn a_bsdf_bake_fits_the_light_that_comes_through() {
             *r = fabric_runtime::hybrid::PackedTransmission::new(&d);
         }
     }
-    let (e2, _) = evaluate_view(&volume, &medium, &doubled, &pair, ViewKind::Orthographic, 32, 32, 7).unwrap();
+    let (e2, _) = evaluate_view(&volume, &medium, &doubled, &pair, ViewKind::Orthographic, 32, 32, 7, 0.0).unwrap();
     eprintln!("backlit held-out {:?}: block error {:.3} (doubled {:.3}), mean ratio {:.3}, reference noise {:.3}", e.pair, e.block_error, e2.block_error, e.mean_ratio, e.reference_noise);
     assert!(e.block_error < 0.7 && e.block_error < e2.block_error, "{} vs doubled {}", e.block_error, e2.block_error);
     assert!((0.6..1.6).contains(&e.mean_ratio), "{}", e.mean_ratio);

@@ -151,6 +151,11 @@ pub struct BakeArgs {
     /// Samples per pixel of the held-out references.
     #[arg(long, default_value_t = 64)]
     pub held_out_spp: u32,
+    /// The yardstick of each held-out view: the reference again with its light turned by
+    /// this many degrees, against itself (how much the truth changes for a small error
+    /// of angle); 0 skips it.
+    #[arg(long, default_value_t = 5.0)]
+    pub held_out_turn: f32,
     /// Directory for the held-out pictures [default: beside the model, NAME-views/].
     #[arg(long)]
     pub pictures: Option<PathBuf>,
@@ -244,6 +249,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
         bail!("--held-out-spp {}: need at least 2 (two halves)", args.held_out_spp);
+    }
+    if !(args.held_out_turn.is_finite() && (0.0..=45.0).contains(&args.held_out_turn)) {
+        bail!("--held-out-turn {}: a turn of the light in degrees, 0 to 45 (0 skips the yardstick)", args.held_out_turn);
     }
     let overrides = args.material.overrides()?;
 
@@ -360,7 +368,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         for (v, pair) in pairs.iter().enumerate() {
             // Every fourth view is a perspective point-light view.
             let kind = if v % 4 == 3 { ViewKind::Perspective } else { ViewKind::Orthographic };
-            let (e, images) = evaluate_view(&volume, &medium, &result.model, pair, kind, nx.max(ny) as u32, args.held_out_spp, options.seed.wrapping_add(v as u64))?;
+            let (e, images) = evaluate_view(&volume, &medium, &result.model, pair, kind, nx.max(ny) as u32, args.held_out_spp, options.seed.wrapping_add(v as u64), args.held_out_turn)?;
             side_by_side(&images.reference, &images.model, &pictures.join(format!("view{v}.png")))?;
             views.push(e);
             bar.inc(1);
@@ -369,7 +377,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         println!("held-out views (model vs reference, relative RMSE):");
         for (v, e) in views.iter().enumerate() {
             println!(
-                "  view {v} {:?}{} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%)",
+                "  view {v} {:?}{} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%{})",
                 e.kind,
                 if e.pair.wi.z < 0.0 { " backlit" } else { "" },
                 e.pair.wi.z.acos().to_degrees(),
@@ -378,7 +386,8 @@ pub fn run(args: BakeArgs) -> Result<()> {
                 100.0 * e.pixel_error,
                 100.0 * e.block16_error,
                 e.mean_ratio,
-                100.0 * e.reference_noise
+                100.0 * e.reference_noise,
+                e.light_turned_error.map(|t| format!("; the reference lit {:.0}° off: {:.1}%", e.light_turn_deg, 100.0 * t)).unwrap_or_default()
             );
         }
         for (lit, name) in [(false, "held-out error over 4x4 blocks"), (true, "backlit held-out error over 4x4 blocks")] {
@@ -389,6 +398,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
             let worst = of.iter().copied().fold(0.0, f64::max);
             let mean = of.iter().sum::<f64>() / of.len() as f64;
             println!("{name}: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+            let turned: Vec<f64> = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).filter_map(|e| e.light_turned_error).collect();
+            if !turned.is_empty() {
+                println!("  yardstick: the reference against itself lit {:.0}° off, mean {:.1}% over the same blocks", args.held_out_turn, 100.0 * turned.iter().sum::<f64>() / turned.len() as f64);
+            }
         }
     }
 
