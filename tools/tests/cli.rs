@@ -278,7 +278,7 @@ fn the_demo_runs_the_main_job_end_to_end() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
     let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
-    for want in ["bake:", "MB from a", "held-out views: relative RMSE median", "demo view", "frame time"] {
+    for want in ["bake:", "MB from a", "held-out views (", "over 4×4 blocks median", "yardstick: the reference lit 5° off", "demo view", "frame time"] {
         assert!(report.contains(want), "report.md lacks '{want}':\n{report}");
     }
     for file in ["twill.hyb", "twill-reference.exr", "twill-reference-vs-hybrid.png", "twill-hybrid.exr", "twill-bake.json"] {
@@ -299,7 +299,7 @@ fn bench_writes_its_csvs_plots_and_summary() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
     let summary = std::fs::read_to_string(out.join("summary.md")).expect("summary.md");
-    for want in ["| twill |", "GPU ms 320x180", "Frame time by distance", "reference view FLIP", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper", "### Environment light", "### Transmission"] {
+    for want in ["| twill |", "GPU ms 320x180", "yardstick: reference lit 5° off", "Frame time by distance", "reference view FLIP", "pom_steps", "level_bias", "skips", "clusters_k", "lobes_per_level", "reference_spp", "Beside the paper", "### Environment light", "### Transmission"] {
         assert!(summary.contains(want), "summary.md lacks '{want}'");
     }
     // A front-lit frame of the BSDF model is the same image with the transmission term

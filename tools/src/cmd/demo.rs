@@ -140,9 +140,24 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let bake = &report["bake"];
     let model_bytes = std::fs::metadata(&model_path)?.len();
     let input_bytes = bake["input_bytes"].as_u64().unwrap_or(0);
-    let mut held: Vec<f64> = report["held_out"].as_array().map(|v| v.iter().filter_map(|h| h["pixel_error"].as_f64()).collect()).unwrap_or_default();
-    held.sort_by(f64::total_cmp);
-    let held_line = if held.is_empty() { "no held-out views".to_string() } else { format!("held-out views: relative RMSE median {:.1}%, range {:.1}–{:.1}% ({} views)", 100.0 * held[held.len() / 2], 100.0 * held[0], 100.0 * held[held.len() - 1], held.len()) };
+    let of = |key: &str| -> Vec<f64> {
+        let mut v: Vec<f64> = report["held_out"].as_array().map(|v| v.iter().filter_map(|h| h[key].as_f64()).collect()).unwrap_or_default();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let (held, blocks, turned) = (of("pixel_error"), of("block_error"), of("light_turned_error"));
+    let spread = |v: &[f64]| format!("median {:.1}%, range {:.1}–{:.1}%", 100.0 * v[v.len() / 2], 100.0 * v[0], 100.0 * v[v.len() - 1]);
+    let held_line = if held.is_empty() {
+        "no held-out views".to_string()
+    } else {
+        let mut l = format!("held-out views ({}): relative RMSE per pixel {}; over 4×4 blocks {}", held.len(), spread(&held), spread(&blocks));
+        if !turned.is_empty() {
+            // The yardstick (`fabric bake --held-out-turn`): what a small error of angle costs.
+            let deg = report["held_out"][0]["light_turn_deg"].as_f64().unwrap_or(f64::NAN);
+            l += &format!(" (yardstick: the reference lit {deg:.0}° off differs from itself by {} over the same blocks)", spread(&turned));
+        }
+        l
+    };
     let lines = [
         format!("fabric demo: {p}, {} voxels, seed {}", args.size, args.seed),
         format!("bake: {:.0} s; model {:.2} MB from a {:.2} MB volume ({:.1}x smaller)", bake["total_seconds"].as_f64().unwrap_or(f64::NAN), model_bytes as f64 / 1e6, input_bytes as f64 / 1e6, input_bytes as f64 / model_bytes.max(1) as f64),
