@@ -201,12 +201,14 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
         (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
         (&["bake", "/nonexistent/fabric", "--k-min", "8", "--k-max", "4"], "k_min"),
         (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
+        (&["bake", "/nonexistent/fabric", "--held-out-turn", "90"], "--held-out-turn"),
+        (&["bake", "/nonexistent/fabric", "--held-out-turn", "nan"], "--held-out-turn"),
     ];
     for (args, says) in cases {
         let o = fabric().args(args).arg("--out").arg(&out).output().unwrap();

@@ -398,6 +398,12 @@ pub fn run(args: BakeArgs) -> Result<()> {
             let worst = of.iter().copied().fold(0.0, f64::max);
             let mean = of.iter().sum::<f64>() / of.len() as f64;
             println!("{name}: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+            // A reference is converged for a 10% bar when its two halves differ by at most
+            // a third of it over the same blocks (‖A − B‖/‖M‖ = 2 × the mean's noise).
+            let halves = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).map(|e| 2.0 * e.reference_noise).fold(0.0, f64::max);
+            if halves > 0.1 / 3.0 {
+                println!("  the references' two halves differ by up to {:.1}% over 4x4 blocks: not converged for a 10% bar (at most 3.3%); --held-out-spp {} would bring them to about {:.1}%", 100.0 * halves, args.held_out_spp * 4, 50.0 * halves);
+            }
             let turned: Vec<f64> = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).filter_map(|e| e.light_turned_error).collect();
             if !turned.is_empty() {
                 println!("  yardstick: the reference against itself lit {:.0}° off, mean {:.1}% over the same blocks", args.held_out_turn, 100.0 * turned.iter().sum::<f64>() / turned.len() as f64);
