@@ -55,7 +55,7 @@ pub struct ViewError {
     pub block16_error: f64,
     /// mean(model) / mean(reference): a global bias shows here.
     pub mean_ratio: f64,
-    /// The reference's own relative error at the block level (from its two halves).
+    /// The reference's own relative error over 4×4 blocks (from its two halves).
     pub reference_noise: f64,
     /// The yardstick: the reference lit from ω_i turned by [`ViewError::light_turn_deg`]
     /// (about a seeded random axis, same camera) against the reference, over 4×4 blocks,
