@@ -146,7 +146,10 @@ pub fn run(args: DemoArgs) -> Result<()> {
         v
     };
     let (held, blocks, turned) = (of("pixel_error"), of("block_error"), of("light_turned_error"));
-    let spread = |v: &[f64]| format!("median {:.1}%, range {:.1}–{:.1}%", 100.0 * v[v.len() / 2], 100.0 * v[0], 100.0 * v[v.len() - 1]);
+    let spread = |v: &[f64]| match (v.first(), v.last()) {
+        (Some(lo), Some(hi)) => format!("median {:.1}%, range {:.1}–{:.1}%", 100.0 * v[v.len() / 2], 100.0 * lo, 100.0 * hi),
+        _ => "not measured".to_string(),
+    };
     let held_line = if held.is_empty() {
         "no held-out views".to_string()
     } else {
