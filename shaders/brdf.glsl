@@ -51,6 +51,8 @@
 #define CLOTH_MAX_LOBES 8
 #define CLOTH_READING_BOUNDED 0u
 #define CLOTH_READING_WIDTH 1u
+#define CLOTH_DIFFUSE_LAMBERT 0u
+#define CLOTH_DIFFUSE_LOMMEL_SEELIGER 1u
 
 const float CLOTH_BETA_MIN = 1e-3;
 const float CLOTH_BETA_MAX = 1e4;
@@ -281,6 +283,30 @@ vec3 cloth_lobe(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wi, vec3 
 // Outgoing radiance per unit irradiance, lobes sharing frame f: f_r * max(dot(n, wi), 0).
 vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
     return cloth_brdf(p, f, wi, wo, reading) * max(dot(f.n, wi), 0.0);
+}
+
+// The diffuse term's cosine factor about n (the texel's lobe-0 normal), by law:
+// CLOTH_DIFFUSE_LAMBERT max(n.wi, 0); CLOTH_DIFFUSE_LOMMEL_SEELIGER
+// max(n.wi, 0) * 2 / max(mu_i + mu_o, CLOTH_DIFFUSE_MU_MIN), mu = max(n.w, 0).
+const float CLOTH_DIFFUSE_MU_MIN = 0.1;
+
+float cloth_diffuse_cosine(uint law, vec3 n, vec3 wi, vec3 wo) {
+    float mu_i = max(dot(n, wi), 0.0);
+    if (law == CLOTH_DIFFUSE_LOMMEL_SEELIGER) {
+        return mu_i * 2.0 / max(mu_i + max(dot(n, wo), 0.0), CLOTH_DIFFUSE_MU_MIN);
+    }
+    return mu_i;
+}
+
+// The law under light uniform over the hemisphere about n, relative to Lambert's:
+// 1, or 4 (1 - mu_o ln(1 + 1/mu_o)) (4 at mu_o = 0). The environment's diffuse term is
+// k_d E(n) times this.
+float cloth_diffuse_env_factor(uint law, vec3 n, vec3 wo) {
+    if (law != CLOTH_DIFFUSE_LOMMEL_SEELIGER) {
+        return 1.0;
+    }
+    float mu_o = max(dot(n, wo), 0.0);
+    return mu_o > 1e-6 ? 4.0 * (1.0 - mu_o * log(1.0 + 1.0 / mu_o)) : 4.0;
 }
 
 // THE TRANSMISSION TERM of a BSDF texel (format 1.3): diffuse kd and one lobe about the

@@ -33,5 +33,5 @@ void main() {
     Query q = queries[n];
     TexelRef texel = texel_brdf(q.texel.x, q.texel.y, q.texel.z);
     Edit none = Edit(vec3(1.0), 1.0, 0.0);
-    responses[n] = vec4(texel_response(texel, none, false, q.wi.xyz, q.wo.xyz, model_reading()), 0.0);
+    responses[n] = vec4(texel_response(texel, none, false, q.wi.xyz, q.wo.xyz, model_reading(), model_diffuse()), 0.0);
 }

@@ -74,7 +74,7 @@ void main() {
     } else if (e.kind == 4u) {
         // model.glsl + shading.glsl: a texel's response, unedited
         TexelRef r = texel_brdf(e.level, e.i, e.j);
-        o.x = vec4(texel_response(r, Edit(vec3(1.0), 1.0, 0.0), false, e.a.xyz, e.b.xyz, model_reading()), 0.0);
+        o.x = vec4(texel_response(r, Edit(vec3(1.0), 1.0, 0.0), false, e.a.xyz, e.b.xyz, model_reading(), model_diffuse()), 0.0);
     } else if (e.kind == 5u) {
         // level.glsl: levels of a footprint
         LevelMix m = level_mix_axes(e.u.x != 0u, e.a.xy, e.a.zw);
@@ -98,7 +98,10 @@ void main() {
         o.z = s.weights;
     } else if (e.kind == 7u) {
         // shading.glsl and flyaways.glsl scalars
-        o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z), 0.0, 0.0);
+        vec3 n = normalize(vec3(e.a.y, e.b.x, 1.0));
+        o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z),
+                   cloth_diffuse_cosine(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.a.xyz, e.b.xyz),
+                   cloth_diffuse_env_factor(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.b.xyz));
     }
     outputs[n] = o;
 }

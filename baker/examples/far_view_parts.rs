@@ -115,7 +115,7 @@ pub fn node_responses(model: &HybridModel) {
         let (mut sum, mut lit) = (0.0f64, 0usize);
         for node in &f.nodes {
             let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, fabric_runtime::brdf::cloth_frame(glam::Vec3::Z, glam::Vec3::X)), node.tangent(), wo);
-            let r = texel_response(&b, wi, wo, model.meta.reading);
+            let r = texel_response(&b, wi, wo, model.meta.reading, fabric_runtime::brdf::DiffuseLaw::Lambert);
             sum += (r.x + r.y + r.z) as f64 / 3.0;
             lit += (r.max_element() > 0.0) as usize;
         }

@@ -37,7 +37,7 @@ fn main() {
         let mut plain = 0.0;
         for j in 0..h {
             for i in 0..w {
-                plain += lum(texel_response(&l0.texel_brdf(i, j), wi, wo, reading));
+                plain += lum(texel_response(&l0.texel_brdf(i, j), wi, wo, reading, model.meta.diffuse));
             }
         }
         plain /= (w * h) as f64;
@@ -50,7 +50,7 @@ fn main() {
                 let trace = scene.probe_ray(&ray, 0, false);
                 let Some(hit) = trace.surface else { continue };
                 let brdf = l0.texel_brdf(hit.texel.0, hit.texel.1);
-                let f = lum(texel_response(&brdf, wi, wo, reading));
+                let f = lum(texel_response(&brdf, wi, wo, reading, model.meta.diffuse));
                 truth += hit.visibility as f64 * f;
                 v_sum += hit.visibility as f64;
                 f_sum += f;
@@ -88,7 +88,7 @@ fn main() {
                     fr.n = rot * fr.n;
                     fr.t = rot * fr.t;
                 }
-                tilted += lum(texel_response(&brdf, wi, wo, reading));
+                tilted += lum(texel_response(&brdf, wi, wo, reading, model.meta.diffuse));
             }
         }
         tilted /= (w * h) as f64;

@@ -94,7 +94,7 @@ fn main() {
                 n += 1;
                 let b = no_fly.levels[0].texel_brdf(hit.texel.0, hit.texel.1);
                 let wo = -ray.d;
-                let f = texel_response(&b, pair.wi, wo, no_fly.meta.reading);
+                let f = texel_response(&b, pair.wi, wo, no_fly.meta.reading, no_fly.meta.diffuse);
                 lit_sum += lum(f * hit.visibility);
                 if lum(f * hit.visibility) >= 0.05 * reference {
                     continue;

@@ -22,7 +22,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw};
 use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
@@ -35,7 +35,7 @@ use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
-use crate::fit::samples::{Geo, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -155,7 +155,9 @@ impl Default for BakeOptions {
             k_max: 32,
             delta: 0.05,
             min_gain: 0.03,
-            fit: ClusterFitOptions::default(),
+            // Lommel–Seeliger's diffuse law: held-out twill 27.5 → 25.9% at fast settings
+            // (baker/FIT_MEASUREMENTS.md, "Lommel–Seeliger diffuse").
+            fit: ClusterFitOptions { diffuse: DiffuseLaw::LommelSeeliger, ..ClusterFitOptions::default() },
             frame_fit: Some(FrameFitOptions::default()),
             dense_pairs: 48,
             dense_spp: 32,
@@ -426,6 +428,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         fitted_with_shadowing: options.shadows,
         volumetric: options.volumetric,
         coarse_visibility: false,
+        diffuse: options.fit.diffuse,
         fit_error: vec![fit_error],
         source_bbox: bbox,
         source_dims: [nx as u32, ny as u32, nz as u32],
@@ -452,7 +455,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
 
     // 3. Samples: the training rays through the model.
     let t = Instant::now();
-    let probe = ProbeOptions { rays: options.probe_rays, shadows: options.shadows, volumetric: options.volumetric };
+    let probe = ProbeOptions { rays: options.probe_rays, shadows: options.shadows, volumetric: options.volumetric, diffuse: options.fit.diffuse };
     let all_texels: Vec<u32> = (0..texels as u32).collect();
     let jitter = image_jitter(half_seeds(options.seed)[0]);
     let bar = begin_stage(progress, "probing the model", pairs.len() as u64);
@@ -480,7 +483,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // target are both scaled by it, its visibility carrying the scale into every frame.
     let pair_w: Vec<f32> = if options.pair_weights { training.pair_weights() } else { Vec::new() };
     let pw = |s: &Sample| pair_w.get(s.dirs as usize).copied().unwrap_or(1.0);
-    let weighted = |s: &Sample| Sample { vis: s.vis * pw(s), geo: Geo { cos_i: s.geo.cos_i * pw(s), ..s.geo }, ..*s };
+    let weighted = |s: &Sample| Sample { vis: s.vis * pw(s), geo: s.geo.weighted(pw(s)), ..*s };
     let ray_of = |s: &Sample| TargetRay { texel: s.hit, dirs: s.dirs, vis: s.vis * pw(s) };
     let mut dense_cache: HashMap<u32, Vec<Sample>> = HashMap::new();
     let mut dense_values: Vec<Vec3> = Vec::new();
@@ -552,7 +555,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         bar.finish();
         // The model's training images, and its error against them.
         let frames = offset_frames(&base_frames, cluster, &offsets);
-        let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
+        let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs, options.fit.diffuse);
         let predictions = predict_images(&samples, &|hit| &fits[cluster[hit] as usize].params, &geo_of, options.fit.reading, &training, texels, options.probe_rays);
         let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
         let mut residuals: Vec<f64> = fits.iter().filter(|f| f.samples > 0).map(|f| f.relative_residual()).collect();
@@ -574,7 +577,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // The texels' frames as fitted (each cluster's offset applied): what level 0 stores.
     let frames = offset_frames(&base_frames, &clusters, &offsets);
     let lobe0_frames: Vec<ClothFrame> = frames.iter().map(|f| f[0]).collect();
-    let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs);
+    let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs, options.fit.diffuse);
     let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
     let k = params.len();
     let cluster_block_error = rounds.iter().find(|r| r.k == k).map_or(cluster_error, |r| r.block_error);
@@ -718,7 +721,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
     bar.finish();
     let render_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let probe = ProbeOptions { rays: options.probe_rays, shadows: false, volumetric: false };
+    let probe = ProbeOptions { rays: options.probe_rays, shadows: false, volumetric: false, diffuse: options.fit.diffuse };
     let all_texels: Vec<u32> = (0..texels as u32).collect();
     let jitter = image_jitter(half_seeds(seed)[0]);
     let bar = begin_stage(progress, "transmission: probing and fitting", backlit.len() as u64 + 1);
@@ -786,9 +789,9 @@ fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p Cloth
 
 /// A sample's factors in its texel's frames `frames` (its pair from `dirs`; the radiance
 /// left zero).
-fn sample_geo(s: &Sample, frames: &[TexelFrames], dirs: &[(Vec3, Vec3)]) -> LobeTarget {
+fn sample_geo(s: &Sample, frames: &[TexelFrames], dirs: &[(Vec3, Vec3)], diffuse: DiffuseLaw) -> LobeTarget {
     let (wi, wo) = dirs[s.dirs as usize];
-    LobeTarget::in_frames(&frames[s.hit as usize], wi, wo, s.vis, Vec3::ZERO)
+    LobeTarget::in_frames(&frames[s.hit as usize], wi, wo, s.vis, Vec3::ZERO, diffuse)
 }
 
 /// 4×4 block means of a texel-order image (partial blocks at the edges included).

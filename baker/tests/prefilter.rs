@@ -16,7 +16,7 @@ use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
 
 fn settings() -> FitSettings {
-    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, evals_per_dim: 40 }
+    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40 }
 }
 
 /// The mean response of `candidates` (equal shares) at each pair, with k_d = 0.

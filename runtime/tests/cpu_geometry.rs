@@ -285,14 +285,14 @@ fn a_single_flyaway_voxel_in_front_of_the_surface() {
                 let s = light.sample(Vec3::ZERO);
                 if t1 > t0 {
                     let frame_b = fabric_runtime::cpu::shading::in_fiber_frame(decoded_fly, fiber_q, wo);
-                    let want = s.irradiance * texel_response(&frame_b, s.wi, wo, fabric_runtime::brdf::BrdfReading::Bounded);
+                    let want = s.irradiance * texel_response(&frame_b, s.wi, wo, fabric_runtime::brdf::BrdfReading::Bounded, fabric_runtime::brdf::DiffuseLaw::Lambert);
                     assert!((got.radiance - want).abs().max_element() <= 1e-5 * want.max_element().max(1e-3), "view ({theta}, {phi}) pixel ({px}, {py}): {} vs flyaway {want}", got.radiance);
                     assert_eq!(got.flyaway_opacity, 1.0);
                     // The fiber frame's t is the fiber axis.
                     assert!(cloth_fiber_frame(fiber_q, wo).t.cross(fiber).length() < 1e-3);
                     on_voxel += 1;
                 } else if got.surface_t.is_some() {
-                    let want = s.irradiance * texel_response(&decoded_surface, s.wi, wo, fabric_runtime::brdf::BrdfReading::Bounded);
+                    let want = s.irradiance * texel_response(&decoded_surface, s.wi, wo, fabric_runtime::brdf::BrdfReading::Bounded, fabric_runtime::brdf::DiffuseLaw::Lambert);
                     assert!((got.radiance - want).abs().max_element() <= 1e-5 * want.max_element(), "view ({theta}, {phi}) pixel ({px}, {py}): {} vs surface {want}", got.radiance);
                     assert_eq!(got.flyaway_opacity, 0.0);
                     on_surface += 1;

@@ -11,6 +11,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use fabric_runtime::brdf::twin::SplitMix64;
+use fabric_runtime::brdf::{DiffuseLaw, cloth_diffuse_cosine, cloth_diffuse_env_factor};
 use fabric_runtime::cpu::flyaways::{FlyawayGrid, flyaway_opacity, visit_flyaways};
 use fabric_runtime::cpu::heightfield::{HeightTracer, HfTrace};
 use fabric_runtime::cpu::shading::{texel_response, volume_factor};
@@ -226,7 +227,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             }
             4 => {
                 let b = model.levels[e.level as usize].texel_brdf(e.i, e.j);
-                let r = texel_response(&b, Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate(), reading);
+                let r = texel_response(&b, Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate(), reading, model.meta.diffuse);
                 let scale = r.max_element().max(1e-6);
                 (r - gx.truncate()).abs().max_element() / scale
             }
@@ -256,7 +257,12 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             _ => {
                 let vf = volume_factor(Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
                 let op = flyaway_opacity(e.c[0], e.c[1], e.c[2]);
-                rel(vf, gx.x, 1e-6).max((op - gx.y).abs())
+                // The Lommel–Seeliger diffuse factors about a normal tilted by the inputs.
+                let (wi, wo) = (Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
+                let n = Vec3::new(e.a[1], e.b[0], 1.0).normalize();
+                let d = cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, n, wi, wo);
+                let h = cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, n, wo);
+                rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6))
             }
         };
         // Per kind: an error above 1e-4 counts as a mismatch (a different branch taken,
@@ -289,4 +295,8 @@ fn every_include_agrees_with_its_rust_twin() {
     let device = CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)");
     check(&examples::sample_model(), false, &device);
     check(&examples::synthetic_model(64, 7), true, &device);
+    // The Lommel–Seeliger diffuse law (format 1.6) through texel_response.
+    let mut ls = examples::synthetic_model(64, 7);
+    ls.meta.diffuse = DiffuseLaw::LommelSeeliger;
+    check(&ls, true, &device);
 }

@@ -463,6 +463,22 @@ fn long_randomized_corruption() {
 }
 
 #[test]
+fn model_flag_bit_3_is_the_diffuse_law_and_unknown_bits_are_rejected() {
+    let mut parts = Parts::of(&sample_bytes());
+    let flags = |p: &mut Parts| u32::from_le_bytes(p.find(SectionKind::Model, 0)[16..20].try_into().unwrap());
+    let set = |p: &mut Parts, f: u32| p.find(SectionKind::Model, 0)[16..20].copy_from_slice(&f.to_le_bytes());
+    let base = flags(&mut parts);
+    assert_eq!(base & 8, 0, "the sample is Lambert's");
+    set(&mut parts, base | 8);
+    assert_eq!(format::read(&parts.assemble()).unwrap().meta.diffuse, fabric_runtime::brdf::DiffuseLaw::LommelSeeliger);
+    for bit in [16u32, 1 << 31] {
+        set(&mut parts, base | bit);
+        let err = format::read(&parts.assemble()).unwrap_err().to_string();
+        assert!(err.contains("MODEL") && err.contains("unknown flags"), "{err}");
+    }
+}
+
+#[test]
 fn fuzz_seeds_are_current() {
     // runtime/fuzz/seeds: valid files the fuzzers start from (runtime/fuzz/README.md).
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
@@ -470,7 +486,11 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample())] {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("diffuse_ls.hyb", {
+        let mut m = sample();
+        m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
+        m
+    })] {
         let bytes = format::to_bytes(&model).unwrap();
         let path = dir.join(name);
         if std::env::var_os("FABRIC_BLESS").is_some() {

@@ -86,3 +86,36 @@ fn the_volumetric_flag_scales_surface_hits_by_the_factor_and_round_trips() {
     assert_eq!(volume_factor(Vec3::Z, Vec3::Z), 1.0);
     assert_eq!(volume_factor(Vec3::X, -Vec3::Z), 20.0);
 }
+
+#[test]
+fn the_lommel_seeliger_flag_scales_the_diffuse_term_alone_and_round_trips() {
+    use fabric_runtime::brdf::{ClothLobe, ClothParams, DiffuseLaw};
+    use fabric_runtime::hybrid::{Tile, examples::uniform_model, format};
+    let tile = Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 0.2, height_scale: 0.2, voxel_depth: 0.0125 };
+    let lobe = ClothLobe { k: Vec3::splat(0.5), beta: 0.3, gamma: 1.0 };
+    let wi = Vec3::new(0.6, 0.1, 0.5).normalize();
+    let wo = Vec3::new(-0.3, 0.4, 0.7).normalize();
+    let ray = |x: u32, y: u32, _s: u32| Ray::new(Vec3::new((x as f32 + 0.5) / 8.0, (y as f32 + 0.5) / 8.0, 0.2), -wo);
+    let image = |kd: f32, law: DiffuseLaw| {
+        let mut m = uniform_model(8, 8, 1, tile, |_, _| 0.1, &ClothParams::new(Vec3::splat(kd), 1.5, 1.0, &[lobe]), Vec3::Z, Vec3::X).unwrap();
+        m.meta.diffuse = law;
+        (measure_image(&m, &CpuRenderOptions::default(), wi, 0, 1, &ray).unwrap(), m)
+    };
+    // The lobes alone do not change; the diffuse part scales by 2 / (μ_i + μ_o).
+    let (lobes_l, _) = image(0.0, DiffuseLaw::Lambert);
+    let (lobes_ls, _) = image(0.0, DiffuseLaw::LommelSeeliger);
+    let (full_l, _) = image(0.3, DiffuseLaw::Lambert);
+    let (full_ls, model) = image(0.3, DiffuseLaw::LommelSeeliger);
+    let f = 2.0 / (wi.z + wo.z);
+    assert!(f > 1.0 && f < 2.0, "{f}");
+    for k in 0..full_l.pixels.len() {
+        assert_eq!(lobes_l.pixels[k], lobes_ls.pixels[k]);
+        let (d_l, d_ls) = (full_l.pixels[k] - lobes_l.pixels[k], full_ls.pixels[k] - lobes_ls.pixels[k]);
+        assert!(d_l.max_element() > 0.0);
+        assert!((d_ls - d_l * f).abs().max_element() <= 1e-5 * d_ls.max_element(), "{d_l} · {f} vs {d_ls}");
+    }
+    // The flag survives the file (bit 3 of MODEL flags; hybrid_format.rs tests the bits).
+    let bytes = format::to_bytes(&model).unwrap();
+    assert_eq!(format::read(&bytes).unwrap().meta.diffuse, DiffuseLaw::LommelSeeliger);
+    assert_eq!(format::read(&format::to_bytes(&image(0.3, DiffuseLaw::Lambert).1).unwrap()).unwrap().meta.diffuse, DiffuseLaw::Lambert);
+}

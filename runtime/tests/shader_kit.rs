@@ -50,7 +50,7 @@ fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
     let mut worst = 0.0f32;
     for (q, g) in queries.iter().zip(&got) {
         let b = model.levels[q.texel[0] as usize].texel_brdf(q.texel[1], q.texel[2]);
-        let want = texel_response(&b, glam::Vec4::from(q.wi).truncate(), glam::Vec4::from(q.wo).truncate(), model.meta.reading);
+        let want = texel_response(&b, glam::Vec4::from(q.wi).truncate(), glam::Vec4::from(q.wo).truncate(), model.meta.reading, model.meta.diffuse);
         let e = (want - glam::Vec4::from(*g).truncate()).abs().max_element() / want.max_element().max(1e-6);
         worst = worst.max(e);
     }

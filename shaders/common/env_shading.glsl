@@ -178,13 +178,14 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
     return sum;
 }
 
-// texel_env_response: k_d E(n_0) V_f(n_0) + the lobes' SG mixtures, the texel edited by
-// `e` as texel_response edits it.
-vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric, uint nodes, uint lookups) {
+// texel_env_response: k_d E(n_0) V_f(n_0) H(n_0, wo) + the lobes' SG mixtures (H the
+// diffuse law's cloth_diffuse_env_factor), the texel edited by `e` as texel_response
+// edits it.
+vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric, uint diffuse, uint nodes, uint lookups) {
     EditedTexel t = edited_texel(r, e, rotate);
     vec3 resp = vec3(0.0);
     if (max(max(t.kd.x, t.kd.y), t.kd.z) > 0.0) {
-        resp = t.kd * env_irradiance(t.n0) * (volumetric ? volume_factor(t.n0, wo) : 1.0);
+        resp = t.kd * env_irradiance(t.n0) * ((volumetric ? volume_factor(t.n0, wo) : 1.0) * cloth_diffuse_env_factor(diffuse, t.n0, wo));
     }
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;

@@ -25,6 +25,7 @@
 #define GPU_FLAG_VOLUMETRIC 2u
 #define GPU_FLAG_COARSE_VISIBILITY 4u
 #define GPU_FLAG_READING_WIDTH 8u
+#define GPU_FLAG_DIFFUSE_LS 16u
 #define GPU_SURFACE_CLUSTERED 0u
 #define GPU_SURFACE_PER_TEXEL 1u
 #define NO_NODE 0xffffffffu
@@ -113,6 +114,11 @@ ivec2 tile_index(int i, int j, ivec2 n) {
 
 uint model_reading() {
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
+}
+
+// The surface texels' diffuse law (flyaways: always CLOTH_DIFFUSE_LAMBERT).
+uint model_diffuse() {
+    return (model.flags & GPU_FLAG_DIFFUSE_LS) != 0u ? CLOTH_DIFFUSE_LOMMEL_SEELIGER : CLOTH_DIFFUSE_LAMBERT;
 }
 
 // PackedTransmission record `index` (runtime/src/hybrid/lobe.rs).

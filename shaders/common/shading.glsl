@@ -93,10 +93,11 @@ ClothLobe edited_lobe(TexelRef r, Edit e, EditedTexel t, uint j, out ClothFrame 
 
 // Reflected radiance toward wo per unit irradiance from wi, the texel edited by `e`
 // (its tangents rotated where `rotate`; Edit::apply):
-// k_d max(n_0.wi, 0) + sum_j cloth_lobe_j max(n_j.wi, 0).
-vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint reading) {
+// k_d D(n_0, wi, wo) + sum_j cloth_lobe_j max(n_j.wi, 0), D by the diffuse law
+// (model_diffuse() at surface hits, CLOTH_DIFFUSE_LAMBERT at flyaways).
+vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint reading, uint diffuse) {
     EditedTexel t = edited_texel(r, e, rotate);
-    vec3 resp = t.kd * max(dot(t.n0, wi), 0.0);
+    vec3 resp = t.kd * cloth_diffuse_cosine(diffuse, t.n0, wi, wo);
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
@@ -206,7 +207,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
         vec3 response = vec3(0.0);
         for (int a = 0; a < 4; ++a) {
             if (s.weights[a] > 0.0) {
-                response += s.weights[a] * texel_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wi, wo, reading);
+                response += s.weights[a] * texel_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wi, wo, reading, CLOTH_DIFFUSE_LAMBERT);
             }
         }
         if (max3(response) <= 0.0) {
@@ -218,7 +219,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
     if (HAS_ENV) {
         for (int a = 0; a < 4; ++a) {
             if (s.weights[a] > 0.0) {
-                radiance += s.weights[a] * texel_env_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wo, reading, false, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
+                radiance += s.weights[a] * texel_env_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wo, reading, false, CLOTH_DIFFUSE_LAMBERT, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
             }
         }
     }
@@ -269,6 +270,7 @@ float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps) {
 // light's visibility once.
 vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
+    uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
     uint count = level == 0u ? 1u : 4u * taps;
     float scale = surface_weight_scale(level, p, wo, axis, taps);
@@ -298,7 +300,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
-            response += w * texel_response(r, e, true, wi, wo, reading);
+            response += w * texel_response(r, e, true, wi, wo, reading, diffuse);
         }
         if (max3(response) <= 0.0) {
             continue;
@@ -310,7 +312,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
-            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, ENV_NODES, ENV_LOOKUPS);
+            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
         }
     }
 #endif

@@ -17,7 +17,7 @@
 //!   every voxel above 5% of the solid density and fibers would otherwise render fatter
 //!   than they are.
 
-use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_fiber_frame};
+use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, DiffuseLaw, cloth_fiber_frame};
 use fabric_runtime::cpu::shading::{texel_response, volume_factor};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError};
@@ -178,7 +178,7 @@ pub fn fit_flyaways(
                     for f in &probe.flyaways {
                         crossed = true;
                         let frame = cloth_fiber_frame(f.fiber, pair.wo);
-                        let g = Geo::new(&frame, pair.wi, pair.wo, f.visibility);
+                        let g = Geo::new(&frame, pair.wi, pair.wo, f.visibility, DiffuseLaw::Lambert);
                         for (b, value) in basis_of(&g).into_iter().enumerate() {
                             row[f.param as usize * nb + b] += (f.weight / rays as f32) as f64 * value;
                         }
@@ -188,7 +188,7 @@ pub fn fit_flyaways(
                         let factor = if model.meta.volumetric { volume_factor(pair.wi, pair.wo) } else { 1.0 };
                         // The texel as the model holds it: each lobe in its own frame.
                         let b = &brdfs[t];
-                        surface += hit.transmittance * hit.visibility * factor / rays as f32 * texel_response(b, pair.wi, pair.wo, reading);
+                        surface += hit.transmittance * hit.visibility * factor / rays as f32 * texel_response(b, pair.wi, pair.wo, reading, model.meta.diffuse);
                     }
                 }
                 crossed.then(|| PixelRow { target: image.pixels[j], residual: image.pixels[j] - surface, row })

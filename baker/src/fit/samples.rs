@@ -11,7 +11,7 @@
 
 use std::time::Instant;
 
-use fabric_runtime::brdf::{ClothFrame, cloth_angles, cloth_fresnel_cos};
+use fabric_runtime::brdf::{ClothFrame, DiffuseLaw, cloth_angles, cloth_diffuse_cosine, cloth_fresnel_cos};
 use fabric_runtime::cpu::shading::volume_factor;
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::HybridModel;
@@ -97,15 +97,25 @@ pub struct Geo {
     pub cos_phi_i: f32,
     /// cos θ_d, for the Fresnel term.
     pub cos_d: f32,
-    /// max(n·ω_i, 0) · visibility: the factor every term carries.
+    /// max(n·ω_i, 0) · visibility: the factor every lobe carries.
     pub cos_i: f32,
+    /// The diffuse term's factor: `cloth_diffuse_cosine` of the diffuse law · visibility
+    /// (= `cos_i` for Lambert's; only lobe 0's frame's is used).
+    pub kd_cos: f32,
 }
 
 impl Geo {
-    /// The factors for directions `wi`, `wo` in `frame`, with the light's `visibility`.
-    pub fn new(frame: &ClothFrame, wi: Vec3, wo: Vec3, visibility: f32) -> Geo {
+    /// The factors for directions `wi`, `wo` in `frame`, with the light's `visibility`,
+    /// the diffuse term by `diffuse` (the model's law; Lambert's for a flyaway).
+    pub fn new(frame: &ClothFrame, wi: Vec3, wo: Vec3, visibility: f32, diffuse: DiffuseLaw) -> Geo {
         let (ai, ao) = (cloth_angles(frame, wi), cloth_angles(frame, wo));
-        Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * visibility }
+        let kd_cos = cloth_diffuse_cosine(diffuse, frame.n, wi, wo) * visibility;
+        Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * visibility, kd_cos }
+    }
+
+    /// The factors with every term weighted by `w` (a sample's weight in the fit).
+    pub fn weighted(self, w: f32) -> Geo {
+        Geo { cos_i: self.cos_i * w, kd_cos: self.kd_cos * w, ..self }
     }
 }
 
@@ -133,6 +143,8 @@ pub struct ProbeOptions {
     pub shadows: bool,
     /// The model's volumetric factor on surface hits (`cpu::shading::volume_factor`).
     pub volumetric: bool,
+    /// The model's diffuse law (`brdf::cloth_diffuse_cosine`).
+    pub diffuse: DiffuseLaw,
 }
 
 /// Probes the rays of `texels` for the pair (`wi`, `wo`): ray s of texel (x, y) is the
@@ -166,7 +178,7 @@ pub fn probe_samples(model: &HybridModel, measure: &MeasureScene, (wi, wo, dirs)
                 let hit = probe.surface?;
                 let index = hit.texel.0 + model.width() * hit.texel.1;
                 let vis = hit.visibility * factor;
-                Some(Sample { hit: index, target: target(texel), dirs, vis, geo: Geo::new(&frames[index as usize], wi, wo, vis) })
+                Some(Sample { hit: index, target: target(texel), dirs, vis, geo: Geo::new(&frames[index as usize], wi, wo, vis, options.diffuse) })
             })
         })
         .collect()

@@ -176,7 +176,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     }
     let start = Instant::now();
     let pairs = fit_pairs(opts.pairs, opts.seed);
-    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, evals_per_dim: opts.evals_per_dim };
+    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim };
     let mut out = model.clone();
     out.levels.truncate(1);
     let mut report = PrefilterReport { pairs: pairs.len(), tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
@@ -385,7 +385,7 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
     let gy = (tracer.depth_at(x, y + 0.5 * texel.y) - tracer.depth_at(x, y - 0.5 * texel.y)) / texel.y;
     let seen = |w: Vec3| !tracer.occluded(p, w, f32::MAX, VISIBILITY_STEPS).0;
     for (a, &(wi, wo)) in acc.iter_mut().zip(pairs) {
-        let f = texel_response(b, wi, wo, reading);
+        let f = texel_response(b, wi, wo, reading, model.meta.diffuse);
         let lit = if !shadowed || seen(wi) { 1.0 } else { 0.0 };
         let area = if !masking { 1.0 } else if seen(wo) { (gx * wo.x + gy * wo.y + wo.z).max(0.0) } else { 0.0 };
         a.num += area * lit * f;

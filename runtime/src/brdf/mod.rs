@@ -118,6 +118,29 @@ impl BrdfReading {
     }
 }
 
+/// How a texel's diffuse term k_d falls with the directions (format 1.6, MODEL flag
+/// bit 3; [`cloth_diffuse_cosine`]). The value is what the GLSL (`CLOTH_DIFFUSE_*`)
+/// passes.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DiffuseLaw {
+    /// k_d · max(n·ω_i, 0): Lambert's cosine, Eq. 1 as printed (the default of a file).
+    #[default]
+    Lambert = 0,
+    /// k_d · max(n·ω_i, 0) · 2 / (μ_i + μ_o), μ = max(n·ω, 0): the single scattering of
+    /// a half-space medium (Lommel–Seeliger), 1 at normal incidence and view.
+    LommelSeeliger = 1,
+}
+
+impl DiffuseLaw {
+    pub fn name(self) -> &'static str {
+        match self {
+            DiffuseLaw::Lambert => "lambert",
+            DiffuseLaw::LommelSeeliger => "lommel-seeliger",
+        }
+    }
+}
+
 /// One specular lobe: RGB strength k, θ width β (radians), φ falloff γ (radians;
 /// γ ≤ 0 switches the falloff off, i.e. γ = ∞).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -370,6 +393,40 @@ pub fn cloth_lobe(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wi: Vec3, 
 #[inline]
 pub fn cloth_response(p: &ClothParams, f: &ClothFrame, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
     cloth_brdf(p, f, wi, wo, reading) * f.n.dot(wi).max(0.0)
+}
+
+/// Smallest μ_i + μ_o of the Lommel–Seeliger diffuse term (caps its factor at 20).
+pub const DIFFUSE_MU_MIN: f32 = 0.1;
+
+/// The diffuse term's cosine factor about the normal `n` (the texel's lobe-0 normal):
+/// k_d times this is the diffuse radiance per unit irradiance. Lambert: max(n·ω_i, 0);
+/// Lommel–Seeliger: max(n·ω_i, 0) · 2 / max(μ_i + μ_o, DIFFUSE_MU_MIN) with
+/// μ = max(n·ω, 0). The second follows a fabric's sub-texel volume: light that enters
+/// at a slant and leaves at a slant crosses less of it, so the diffuse part brightens
+/// toward grazing pairs (baker/FIT_MEASUREMENTS.md, "Lommel–Seeliger diffuse").
+#[inline]
+pub fn cloth_diffuse_cosine(law: DiffuseLaw, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+    let mu_i = n.dot(wi).max(0.0);
+    match law {
+        DiffuseLaw::Lambert => mu_i,
+        DiffuseLaw::LommelSeeliger => mu_i * 2.0 / (mu_i + n.dot(wo).max(0.0)).max(DIFFUSE_MU_MIN),
+    }
+}
+
+/// The diffuse law under light that is uniform over the hemisphere about `n`, relative
+/// to Lambert's: ∫ D dω_i / ∫ max(n·ω_i, 0) dω_i. Lambert: 1. Lommel–Seeliger:
+/// 4 · (1 − μ_o · ln(1 + 1/μ_o)), μ_o = max(n·ω_o, 0) (4 at μ_o = 0; 1.23 at μ_o = 1;
+/// [`DIFFUSE_MU_MIN`]'s cap left out, which changes it only for μ_o < 0.1). An
+/// environment's diffuse term is k_d · E(n) · this: exact for a constant map.
+#[inline]
+pub fn cloth_diffuse_env_factor(law: DiffuseLaw, n: Vec3, wo: Vec3) -> f32 {
+    match law {
+        DiffuseLaw::Lambert => 1.0,
+        DiffuseLaw::LommelSeeliger => {
+            let mu_o = n.dot(wo).max(0.0);
+            if mu_o > 1e-6 { 4.0 * (1.0 - mu_o * (1.0 + 1.0 / mu_o).ln()) } else { 4.0 }
+        }
+    }
 }
 
 /// Largest optical-depth parameter τ of a transmission term.

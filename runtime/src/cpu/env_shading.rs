@@ -27,7 +27,10 @@
 //! cut at the tile plane and at n·ω_i = 0 is a step inside the band, which few-point
 //! rules integrate worse — a constant map's integral up to 5% off with 16 SGs, 20% with
 //! 8, against 3.7% and 16.5% with midpoints.)
-//! The diffuse term is k_d · E(n_0) · V_f(n_0, ω_o), E the irradiance map.
+//! The diffuse term is k_d · E(n_0) · V_f(n_0, ω_o) · H(n_0, ω_o), E the irradiance map
+//! and H the diffuse law's factor under uniform light ([`cloth_diffuse_env_factor`]: 1
+//! for Lambert; exact for a constant map, and for Lommel–Seeliger an approximation
+//! where the map varies across the hemisphere).
 //!
 //! # Visibility (the stated approximation)
 //! The height field does not shadow environment light (no rays are traced): a hit sees
@@ -41,7 +44,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, K_MAX, cloth_angles, cloth_fresnel, cloth_gaussian, cloth_phi_falloff, cloth_shadowing};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, DiffuseLaw, K_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_fresnel, cloth_gaussian, cloth_phi_falloff, cloth_shadowing};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -247,13 +250,13 @@ pub fn env_theta_cells(theta_c: f32, beta_eff: f32, k_theta: usize, ao: &crate::
 }
 
 /// Radiance toward `wo` from a texel lit by the environment (module docs).
-pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, budget: EnvBudget, env: &PrefilteredEnv) -> Vec3 {
+pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, diffuse: DiffuseLaw, budget: EnvBudget, env: &PrefilteredEnv) -> Vec3 {
     let p = &b.params;
     let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let n0 = b.frames[0].n;
     let mut r = Vec3::ZERO;
     if kd.max_element() > 0.0 {
-        r += kd * env.irradiance(n0) * if volumetric { volume_factor(n0, wo) } else { 1.0 };
+        r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, n0, wo));
     }
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
         let mut group = EnvGroup::default();
@@ -271,7 +274,7 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
 /// The same integral by brute force (the test's and the bench's ground truth):
 /// ∫ L(ω_i) · response(ω_i, ω_o) · V_f dω_i over ω_i.z > 0, on an `n` × 2n grid of
 /// equal solid angle in the map's own frame, the map looked up texel by texel.
-pub fn texel_env_response_quadrature(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, map: &EnvMap, n: usize) -> Vec3 {
+pub fn texel_env_response_quadrature(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, diffuse: DiffuseLaw, map: &EnvMap, n: usize) -> Vec3 {
     let mut sum = glam::DVec3::ZERO;
     let cell = 4.0 * PI as f64 / (2 * n * n) as f64;
     for j in 0..n {
@@ -287,7 +290,7 @@ pub fn texel_env_response_quadrature(b: &TexelBrdf, wo: Vec3, reading: BrdfReadi
             if l.max_element() <= 0.0 {
                 continue;
             }
-            let f = super::shading::texel_response(b, wi, wo, reading) * if volumetric { volume_factor(wi, wo) } else { 1.0 };
+            let f = super::shading::texel_response(b, wi, wo, reading, diffuse) * if volumetric { volume_factor(wi, wo) } else { 1.0 };
             sum += (l * f).as_dvec3();
         }
     }
@@ -326,16 +329,38 @@ mod tests {
             for reading in [BrdfReading::Bounded, BrdfReading::Width] {
                 for wo in [direction_from_angles(10.0, 0.0), direction_from_angles(50.0, 70.0), direction_from_angles(75.0, 200.0)] {
                     let b = texel(Vec3::ZERO, &[lobe], n, t);
-                    let exact = texel_env_response_quadrature(&b, wo, reading, false, &env_map, 600).x;
+                    let exact = texel_env_response_quadrature(&b, wo, reading, false, DiffuseLaw::Lambert, &env_map, 600).x;
                     // The flyaway budget's 8 SGs are coarser in φ: measured up to 16.5% off
                     // (a wide lobe seen at 75°), against 3.7% with the surface's 16.
                     for (budget, tol) in [(EnvBudget::SURFACE, 0.03), (EnvBudget::FLYAWAY, 0.2)] {
-                        let sg = texel_env_response(&b, wo, reading, false, budget, &env).x;
+                        let sg = texel_env_response(&b, wo, reading, false, DiffuseLaw::Lambert, budget, &env).x;
                         assert!((sg - exact).abs() <= tol * exact + 1e-4, "case {ci} {reading:?} ω_o {wo} {budget:?}: SG {sg} vs ∫ {exact}");
                     }
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_diffuse_laws_integrate_a_constant_environment() {
+        // k_d alone: E(n) · H must be the integral of k_d · D over the upper hemisphere.
+        // The tile's horizon cuts a tilted normal's hemisphere, so only n = ẑ is exact;
+        // the Lommel–Seeliger cap at μ_i + μ_o = 0.1 moves grazing views by < 2%.
+        let env_map = EnvMap::constant(Vec3::ONE).unwrap();
+        let env = PrefilteredEnv::new(&env_map);
+        for law in [DiffuseLaw::Lambert, DiffuseLaw::LommelSeeliger] {
+            for (theta, tol) in [(0.0, 0.01), (40.0, 0.01), (70.0, 0.01), (85.0, 0.02)] {
+                let wo = direction_from_angles(theta, 30.0);
+                let b = texel(Vec3::ONE, &[], Vec3::Z, Vec3::X);
+                let exact = texel_env_response_quadrature(&b, wo, BrdfReading::Bounded, false, law, &env_map, 600).x;
+                let sg = texel_env_response(&b, wo, BrdfReading::Bounded, false, law, EnvBudget::SURFACE, &env).x;
+                assert!((sg - exact).abs() <= tol * exact, "{law:?} θ_o {theta}: {sg} vs ∫ {exact}");
+            }
+        }
+        // Lommel–Seeliger brightens a grazing view over Lambert's π.
+        let b = texel(Vec3::ONE, &[], Vec3::Z, Vec3::X);
+        let grazing = texel_env_response(&b, direction_from_angles(80.0, 0.0), BrdfReading::Bounded, false, DiffuseLaw::LommelSeeliger, EnvBudget::SURFACE, &env).x;
+        assert!(grazing > 2.0 * PI, "{grazing}");
     }
 
     #[test]
@@ -347,7 +372,7 @@ mod tests {
                 for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-4).normalize(), direction_from_angles(89.9, 10.0)] {
                     for reading in [BrdfReading::Bounded, BrdfReading::Width] {
                         let b = texel(Vec3::splat(K_MAX), &[ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }], n, t);
-                        let r = texel_env_response(&b, wo, reading, true, EnvBudget::SURFACE, &env);
+                        let r = texel_env_response(&b, wo, reading, true, DiffuseLaw::LommelSeeliger, EnvBudget::SURFACE, &env);
                         assert!(r.is_finite() && r.min_element() >= 0.0, "β {beta} γ {gamma} n {n} ω_o {wo}: {r}");
                     }
                 }
@@ -363,10 +388,10 @@ mod tests {
         let env = PrefilteredEnv::with_lights(&map, crate::scene::ExtractOptions::default()).unwrap();
         assert_eq!(env.lights.len(), 1, "the sun is a light");
         // What a renderer adds for the extracted lights (unshadowed here).
-        let lit = |b: &TexelBrdf, wo: Vec3, reading, volumetric| -> Vec3 {
+        let lit = |b: &TexelBrdf, wo: Vec3, reading, volumetric, diffuse| -> Vec3 {
             env.lights.iter().map(|l| {
                 let s = l.sample(Vec3::ZERO);
-                if s.wi.z > 0.0 { s.irradiance * super::super::shading::texel_response(b, s.wi, wo, reading) * if volumetric { volume_factor(s.wi, wo) } else { 1.0 } } else { Vec3::ZERO }
+                if s.wi.z > 0.0 { s.irradiance * super::super::shading::texel_response(b, s.wi, wo, reading, diffuse) * if volumetric { volume_factor(s.wi, wo) } else { 1.0 } } else { Vec3::ZERO }
             }).sum()
         };
         let mut h = 0x1234_5678u64;
@@ -385,8 +410,9 @@ mod tests {
             let wo = direction_from_angles(70.0 * rnd(), 360.0 * rnd());
             let reading = if case % 4 == 3 { BrdfReading::Width } else { BrdfReading::Bounded };
             let volumetric = case % 2 == 0;
-            let sg = texel_env_response(&b, wo, reading, volumetric, budget, &env) + lit(&b, wo, reading, volumetric);
-            let exact = texel_env_response_quadrature(&b, wo, reading, volumetric, &map, 700);
+            let diffuse = if case % 3 == 1 { DiffuseLaw::LommelSeeliger } else { DiffuseLaw::Lambert };
+            let sg = texel_env_response(&b, wo, reading, volumetric, diffuse, budget, &env) + lit(&b, wo, reading, volumetric, diffuse);
+            let exact = texel_env_response_quadrature(&b, wo, reading, volumetric, diffuse, &map, 700);
             assert!(sg.is_finite() && sg.min_element() >= 0.0);
             errors.push((sg - exact).length() / exact.length().max(1e-6));
         }

@@ -21,7 +21,7 @@ use crate::brdf::visible_normal::{tilt_frames, view_visibility};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
 use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
-use crate::brdf::BrdfReading;
+use crate::brdf::{BrdfReading, DiffuseLaw};
 use crate::hybrid::{HybridModel, TexelBrdf};
 use crate::image::Image;
 use crate::scene::{Camera, Light, LightSample, Ray};
@@ -45,6 +45,8 @@ pub struct Scene<'a> {
     pub tracer: HeightTracer,
     pub shadows: bool,
     reading: BrdfReading,
+    /// The surface texels' diffuse law (the model's; flyaways are Lambert's).
+    diffuse: DiffuseLaw,
     /// Whether `options.edits` changes anything.
     edited: bool,
     pub(crate) grids: Vec<FlyawayGrid>,
@@ -120,7 +122,7 @@ impl<'a> Scene<'a> {
     pub fn new(model: &'a HybridModel, camera: &'a Camera, lights: &'a [Light], options: CpuRenderOptions) -> Result<Scene<'a>, CpuRenderError> {
         let shadows = validate_render(model, camera, lights, &options)?;
         let grids = (0..model.levels.len()).map(|l| FlyawayGrid::new(model, l, options.periodic)).collect();
-        Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, grids, edited: !options.edits.is_identity(), options })
+        Ok(Scene { model, camera, lights, tracer: HeightTracer::new(model, options.periodic), shadows, reading: model.meta.reading, diffuse: model.meta.diffuse, grids, edited: !options.edits.is_identity(), options })
     }
 
     /// A scene for rays given by the caller rather than by a camera (the baker's probe,
@@ -381,7 +383,7 @@ impl<'a> Scene<'a> {
                 let axes = f.node_axes(index);
                 if axes.weights[0] >= 1.0 {
                     let b = fiber(axes.axes[0]);
-                    return shade(&b, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, EnvBudget::FLYAWAY);
+                    return shade(&b, p, wo, self.lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY);
                 }
                 // A coarse node's spread axes (brdf::axis_spread): their mean response,
                 // each light's visibility once. A fixed array: this runs per node crossed.
@@ -392,7 +394,7 @@ impl<'a> Scene<'a> {
                     n += 1;
                 }
                 let texels = &texels[..n];
-                shade_blend(texels, p, wo, self.lights, self.reading, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, EnvBudget::FLYAWAY)).sum::<Vec3>()
+                shade_blend(texels, p, wo, self.lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY)).sum::<Vec3>()
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
@@ -419,10 +421,10 @@ impl<'a> Scene<'a> {
         let radiance = if level == 0 {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
-            shade(&b, p, wo, self.lights, self.reading, visible) + self.env_response(&b, wo, volumetric, EnvBudget::SURFACE)
+            shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)
         } else if mix.taps <= 1 {
             let texels = self.bilinear_texels_seen(p, level, wo).map(|(b, w, _)| (edited(b), w));
-            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
+            shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>()
         } else {
             let n = mix.taps;
             let mut texels = Vec::with_capacity(4 * n as usize);
@@ -433,16 +435,16 @@ impl<'a> Scene<'a> {
             if l.view_tilt.is_some() {
                 normalize_weights(&mut texels);
             }
-            shade_blend(&texels, p, wo, self.lights, self.reading, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, EnvBudget::SURFACE)).sum::<Vec3>()
+            shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>()
         };
         (radiance, shadow_limited)
     }
 
     /// The environment's SG part at a hit (zero without a map). Unshadowed by the
     /// height field (env_shading.rs states the approximation).
-    fn env_response(&self, b: &TexelBrdf, wo: Vec3, volumetric: bool, budget: EnvBudget) -> Vec3 {
+    fn env_response(&self, b: &TexelBrdf, wo: Vec3, volumetric: bool, diffuse: DiffuseLaw, budget: EnvBudget) -> Vec3 {
         match &self.options.env {
-            Some(env) => texel_env_response(b, wo, self.reading, volumetric, budget, &env.prefiltered),
+            Some(env) => texel_env_response(b, wo, self.reading, volumetric, diffuse, budget, &env.prefiltered),
             None => Vec3::ZERO,
         }
     }

@@ -4,12 +4,14 @@
 //! Radiance toward ω_o (runtime/HYBRID_FORMAT.md §6):
 //!
 //! ```text
-//! L_o = Σ_lights E · V · [ k_d · max(n_0·ω_i, 0) + Σ_j cloth_lobe_j(ω_i, ω_o) · max(n_j·ω_i, 0) ]
+//! L_o = Σ_lights E · V · [ k_d · D(n_0, ω_i, ω_o) + Σ_j cloth_lobe_j(ω_i, ω_o) · max(n_j·ω_i, 0) ]
 //! ```
 //!
 //! E the light's irradiance perpendicular to its beam at the point, V its visibility
 //! (1 without shadowing), lobe j in its own frame (n_j, t_j); lobe 0's frame carries
-//! the diffuse term. With one shared frame this is E·V·f_r·max(n·ω_i, 0), f_r of Eq. 1:
+//! the diffuse term, whose cosine factor D is the model's diffuse law
+//! ([`cloth_diffuse_cosine`]: Lambert's max(n_0·ω_i, 0), or Lommel–Seeliger's; flyaways
+//! always Lambert's). With one shared frame this is E·V·f_r·max(n·ω_i, 0), f_r of Eq. 1:
 //! exactly what the fit matches (DESIGN.md §5, "fit radiance, not ratios").
 //!
 //! A light below the tile plane (ω_i.z < 0) reaches the viewer only through the cloth:
@@ -20,17 +22,18 @@
 
 use glam::Vec3;
 
-use crate::brdf::{BrdfReading, K_MAX, cloth_fiber_frame, cloth_lobe, cloth_transmission_response};
+use crate::brdf::{BrdfReading, DiffuseLaw, K_MAX, cloth_diffuse_cosine, cloth_fiber_frame, cloth_lobe, cloth_transmission_response};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{Light, LightSample};
 
 /// Reflected radiance toward `wo` per unit irradiance from `wi` (both unit, pointing
-/// away from the surface).
+/// away from the surface), the diffuse term by `diffuse` (the model's law at surface
+/// hits, [`DiffuseLaw::Lambert`] at flyaways).
 #[inline]
-pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading, diffuse: DiffuseLaw) -> Vec3 {
     let p = &b.params;
     let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    let mut r = kd * b.frames[0].n.dot(wi).max(0.0);
+    let mut r = kd * cloth_diffuse_cosine(diffuse, b.frames[0].n, wi, wo);
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
         let cos_i = frame.n.dot(wi);
         if cos_i > 0.0 {
@@ -71,7 +74,7 @@ pub fn in_fiber_frame(mut b: TexelBrdf, fiber: Vec3, wo: Vec3) -> TexelBrdf {
 
 /// Radiance leaving point `p` toward `wo` under `lights`; `visible(p, sample)` is the
 /// light's visibility in [0, 1] (shadowing).
-pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
+pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, diffuse: DiffuseLaw, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     for light in lights {
         let s = light.sample(p);
@@ -82,7 +85,7 @@ pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfRe
             radiance += s.irradiance * texel_transmission_response(b, s.wi, wo);
             continue;
         }
-        let response = texel_response(b, s.wi, wo, reading);
+        let response = texel_response(b, s.wi, wo, reading, diffuse);
         if response.max_element() <= 0.0 {
             continue;
         }
@@ -93,7 +96,7 @@ pub fn shade(b: &TexelBrdf, p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfRe
 
 /// [`shade`] for a blend of texels (the bilinear filter of a coarse level): Σ_lights
 /// E · V · Σ_k w_k · response_k, each light's visibility evaluated once.
-pub fn shade_blend(texels: &[(TexelBrdf, f32)], p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
+pub fn shade_blend(texels: &[(TexelBrdf, f32)], p: Vec3, wo: Vec3, lights: &[Light], reading: BrdfReading, diffuse: DiffuseLaw, mut visible: impl FnMut(Vec3, &LightSample) -> f32) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     for light in lights {
         let s = light.sample(p);
@@ -104,7 +107,7 @@ pub fn shade_blend(texels: &[(TexelBrdf, f32)], p: Vec3, wo: Vec3, lights: &[Lig
             radiance += s.irradiance * texels.iter().map(|(b, w)| *w * texel_transmission_response(b, s.wi, wo)).sum::<Vec3>();
             continue;
         }
-        let response: Vec3 = texels.iter().map(|(b, w)| *w * texel_response(b, s.wi, wo, reading)).sum();
+        let response: Vec3 = texels.iter().map(|(b, w)| *w * texel_response(b, s.wi, wo, reading, diffuse)).sum();
         if response.max_element() <= 0.0 {
             continue;
         }

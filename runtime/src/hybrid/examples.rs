@@ -29,6 +29,7 @@ pub fn example_meta(tile: &Tile, levels: usize, dims: [u32; 3]) -> BakeMetadata 
         fitted_with_shadowing: false,
         volumetric: false,
         coarse_visibility: false,
+        diffuse: crate::brdf::DiffuseLaw::Lambert,
         fit_error: vec![-1.0; levels],
         source_bbox: Aabb::new(min, max),
         source_dims: dims,

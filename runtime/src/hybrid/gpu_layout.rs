@@ -43,6 +43,9 @@ pub const GPU_FLAG_VOLUMETRIC: u32 = 2;
 pub const GPU_FLAG_COARSE_VISIBILITY: u32 = 4;
 /// The BRDFs use the width reading of Eqs. 2–3 ([`crate::brdf::BrdfReading::Width`]).
 pub const GPU_FLAG_READING_WIDTH: u32 = 8;
+/// Surface texels' diffuse term follows the Lommel–Seeliger law
+/// ([`crate::brdf::DiffuseLaw::LommelSeeliger`]).
+pub const GPU_FLAG_DIFFUSE_LS: u32 = 16;
 
 /// [`GpuLevel::surface`]: per texel a frame and a cluster index.
 pub const GPU_SURFACE_CLUSTERED: u32 = 0;
@@ -165,7 +168,8 @@ impl GpuModel {
         let flags = if periodic { GPU_FLAG_PERIODIC } else { 0 }
             | if m.volumetric { GPU_FLAG_VOLUMETRIC } else { 0 }
             | if m.coarse_visibility { GPU_FLAG_COARSE_VISIBILITY } else { 0 }
-            | if m.reading == crate::brdf::BrdfReading::Width { GPU_FLAG_READING_WIDTH } else { 0 };
+            | if m.reading == crate::brdf::BrdfReading::Width { GPU_FLAG_READING_WIDTH } else { 0 }
+            | if m.diffuse == crate::brdf::DiffuseLaw::LommelSeeliger { GPU_FLAG_DIFFUSE_LS } else { 0 };
         let mut out = GpuModel {
             header: GpuModelHeader {
                 origin: t.origin.to_array(),

@@ -198,6 +198,9 @@ pub struct BakeMetadata {
     /// averaged over their footprint (the prefilter's, format 1.2): renderers shade
     /// levels ≥ 1 without shadow rays then.
     pub coarse_visibility: bool,
+    /// The law of the surface texels' diffuse term ([`crate::brdf::cloth_diffuse_cosine`];
+    /// Lommel–Seeliger since format 1.6). Flyaways' is always Lambert's.
+    pub diffuse: crate::brdf::DiffuseLaw,
     /// Relative fit error per level (≥ 0), or negative where not measured.
     pub fit_error: Vec<f32>,
     /// Bounding box of the source volume.

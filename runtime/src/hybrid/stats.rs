@@ -100,6 +100,8 @@ pub struct ModelStats {
     pub fitted_with_shadowing: bool,
     pub volumetric: bool,
     pub coarse_visibility: bool,
+    /// The surface's diffuse law (`lambert` or `lommel-seeliger`).
+    pub diffuse: &'static str,
     pub source_bbox: [f32; 6],
     pub source_dims: [u32; 3],
     pub seed: u64,
@@ -205,6 +207,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         fitted_with_shadowing: m.meta.fitted_with_shadowing,
         volumetric: m.meta.volumetric,
         coarse_visibility: m.meta.coarse_visibility,
+        diffuse: m.meta.diffuse.name(),
         source_bbox: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
         source_dims: m.meta.source_dims,
         seed: m.meta.seed,

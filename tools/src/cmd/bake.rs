@@ -14,7 +14,7 @@ use fabric_baker::evaluate::{ViewError, ViewKind, evaluate_view, reference_mediu
 use fabric_baker::fit::directions::held_out_pairs;
 use fabric_baker::reference::Lookup;
 use fabric_baker::volume::load_fabric;
-use fabric_runtime::brdf::BrdfReading;
+use fabric_runtime::brdf::{BrdfReading, DiffuseLaw};
 use fabric_runtime::image::Image;
 
 use crate::args::MaterialArgs;
@@ -40,6 +40,12 @@ pub enum AlphaArg {
 pub enum ReadingArg {
     Bounded,
     Width,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum DiffuseArg {
+    Lambert,
+    LommelSeeliger,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -91,6 +97,10 @@ pub struct BakeArgs {
     /// Reading of the printed Eqs. 2–3.
     #[arg(long, value_enum, default_value = "width")]
     pub reading: ReadingArg,
+    /// The surface's diffuse law: Lambert's k_d·max(n·ω_i, 0), or Lommel–Seeliger's
+    /// k_d·max(n·ω_i, 0)·2/(μ_i + μ_o) (format 1.6; baker/FIT_MEASUREMENTS.md measures both).
+    #[arg(long, value_enum, default_value = "lommel-seeliger")]
+    pub diffuse: DiffuseArg,
     /// Keep the geometry stage's texel frames instead of fitting a frame offset per
     /// cluster with its BRDF (slope, rise, twist, roll: Eq. 8 with the frame free).
     #[arg(long)]
@@ -193,6 +203,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.fit.reading = match args.reading {
         ReadingArg::Bounded => BrdfReading::Bounded,
         ReadingArg::Width => BrdfReading::Width,
+    };
+    options.fit.diffuse = match args.diffuse {
+        DiffuseArg::Lambert => DiffuseLaw::Lambert,
+        DiffuseArg::LommelSeeliger => DiffuseLaw::LommelSeeliger,
     };
     options.surface_mask = match args.mask {
         MaskArg::Above => SurfaceMask::AboveSurface,
