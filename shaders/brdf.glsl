@@ -287,25 +287,26 @@ vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading)
 
 // The diffuse term's cosine factor about n (the texel's lobe-0 normal), by law:
 // CLOTH_DIFFUSE_LAMBERT max(n.wi, 0); CLOTH_DIFFUSE_LOMMEL_SEELIGER
-// max(n.wi, 0) * 2 / max(mu_i + mu_o, CLOTH_DIFFUSE_MU_MIN), mu = max(n.w, 0).
+// max(n.wi, 0) * 2 / max(mu_i + mu_o, CLOTH_DIFFUSE_MU_MIN), mu = max(w.z, 0) the
+// cosines to the tile's normal.
 const float CLOTH_DIFFUSE_MU_MIN = 0.1;
 
 float cloth_diffuse_cosine(uint law, vec3 n, vec3 wi, vec3 wo) {
-    float mu_i = max(dot(n, wi), 0.0);
+    float cos_i = max(dot(n, wi), 0.0);
     if (law == CLOTH_DIFFUSE_LOMMEL_SEELIGER) {
-        return mu_i * 2.0 / max(mu_i + max(dot(n, wo), 0.0), CLOTH_DIFFUSE_MU_MIN);
+        return cos_i * 2.0 / max(max(wi.z, 0.0) + max(wo.z, 0.0), CLOTH_DIFFUSE_MU_MIN);
     }
-    return mu_i;
+    return cos_i;
 }
 
-// The law under light uniform over the hemisphere about n, relative to Lambert's:
-// 1, or 4 (1 - mu_o ln(1 + 1/mu_o)) (4 at mu_o = 0). The environment's diffuse term is
-// k_d E(n) times this.
-float cloth_diffuse_env_factor(uint law, vec3 n, vec3 wo) {
+// The law under light uniform over the tile's upper hemisphere, relative to Lambert's,
+// for n = z: 1, or 4 (1 - mu_o ln(1 + 1/mu_o)), mu_o = max(wo.z, 0) (4 at 0). The
+// environment's diffuse term is k_d E(n) times this.
+float cloth_diffuse_env_factor(uint law, vec3 wo) {
     if (law != CLOTH_DIFFUSE_LOMMEL_SEELIGER) {
         return 1.0;
     }
-    float mu_o = max(dot(n, wo), 0.0);
+    float mu_o = max(wo.z, 0.0);
     return mu_o > 1e-6 ? 4.0 * (1.0 - mu_o * log(1.0 + 1.0 / mu_o)) : 4.0;
 }
 

@@ -101,7 +101,7 @@ void main() {
         vec3 n = normalize(vec3(e.a.y, e.b.x, 1.0));
         o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z),
                    cloth_diffuse_cosine(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.a.xyz, e.b.xyz),
-                   cloth_diffuse_env_factor(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.b.xyz));
+                   cloth_diffuse_env_factor(CLOTH_DIFFUSE_LOMMEL_SEELIGER, e.b.xyz));
     }
     outputs[n] = o;
 }

@@ -261,7 +261,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let (wi, wo) = (Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());
                 let n = Vec3::new(e.a[1], e.b[0], 1.0).normalize();
                 let d = cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, n, wi, wo);
-                let h = cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, n, wo);
+                let h = cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, wo);
                 rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6))
             }
         };

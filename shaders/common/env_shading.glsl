@@ -185,7 +185,7 @@ vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, 
     EditedTexel t = edited_texel(r, e, rotate);
     vec3 resp = vec3(0.0);
     if (max(max(t.kd.x, t.kd.y), t.kd.z) > 0.0) {
-        resp = t.kd * env_irradiance(t.n0) * ((volumetric ? volume_factor(t.n0, wo) : 1.0) * cloth_diffuse_env_factor(diffuse, t.n0, wo));
+        resp = t.kd * env_irradiance(t.n0) * ((volumetric ? volume_factor(t.n0, wo) : 1.0) * cloth_diffuse_env_factor(diffuse, wo));
     }
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;

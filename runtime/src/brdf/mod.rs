@@ -127,8 +127,9 @@ pub enum DiffuseLaw {
     /// k_d · max(n·ω_i, 0): Lambert's cosine, Eq. 1 as printed (the default of a file).
     #[default]
     Lambert = 0,
-    /// k_d · max(n·ω_i, 0) · 2 / (μ_i + μ_o), μ = max(n·ω, 0): the single scattering of
-    /// a half-space medium (Lommel–Seeliger), 1 at normal incidence and view.
+    /// k_d · max(n·ω_i, 0) · 2 / (μ_i + μ_o), μ = max(ω·ẑ, 0) the cosines to the tile's
+    /// normal: the single scattering of a half-space medium (Lommel–Seeliger), 1 at
+    /// normal incidence and view.
     LommelSeeliger = 1,
 }
 
@@ -401,29 +402,33 @@ pub const DIFFUSE_MU_MIN: f32 = 0.1;
 /// The diffuse term's cosine factor about the normal `n` (the texel's lobe-0 normal):
 /// k_d times this is the diffuse radiance per unit irradiance. Lambert: max(n·ω_i, 0);
 /// Lommel–Seeliger: max(n·ω_i, 0) · 2 / max(μ_i + μ_o, DIFFUSE_MU_MIN) with
-/// μ = max(n·ω, 0). The second follows a fabric's sub-texel volume: light that enters
-/// at a slant and leaves at a slant crosses less of it, so the diffuse part brightens
-/// toward grazing pairs (baker/FIT_MEASUREMENTS.md, "Lommel–Seeliger diffuse").
+/// μ = max(ω·ẑ, 0), ẑ the tile's normal. The second follows the cloth's volume: light
+/// that enters at a slant and leaves at a slant crosses less of it, so the diffuse part
+/// brightens toward grazing pairs. μ is taken about the tile, not about n, so the factor
+/// is the same for every texel of a footprint (a coarse texel's k_d filters as
+/// Lambert's does) and a texel turned away from the viewer is not lifted
+/// (baker/FIT_MEASUREMENTS.md, "Lommel–Seeliger diffuse", measures both).
 #[inline]
 pub fn cloth_diffuse_cosine(law: DiffuseLaw, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
-    let mu_i = n.dot(wi).max(0.0);
+    let cos_i = n.dot(wi).max(0.0);
     match law {
-        DiffuseLaw::Lambert => mu_i,
-        DiffuseLaw::LommelSeeliger => mu_i * 2.0 / (mu_i + n.dot(wo).max(0.0)).max(DIFFUSE_MU_MIN),
+        DiffuseLaw::Lambert => cos_i,
+        DiffuseLaw::LommelSeeliger => cos_i * 2.0 / (wi.z.max(0.0) + wo.z.max(0.0)).max(DIFFUSE_MU_MIN),
     }
 }
 
-/// The diffuse law under light that is uniform over the hemisphere about `n`, relative
-/// to Lambert's: ∫ D dω_i / ∫ max(n·ω_i, 0) dω_i. Lambert: 1. Lommel–Seeliger:
-/// 4 · (1 − μ_o · ln(1 + 1/μ_o)), μ_o = max(n·ω_o, 0) (4 at μ_o = 0; 1.23 at μ_o = 1;
-/// [`DIFFUSE_MU_MIN`]'s cap left out, which changes it only for μ_o < 0.1). An
-/// environment's diffuse term is k_d · E(n) · this: exact for a constant map.
+/// The diffuse law under light that is uniform over the tile's upper hemisphere,
+/// relative to Lambert's, for n = ẑ: ∫ D dω_i / ∫ max(ẑ·ω_i, 0) dω_i. Lambert: 1.
+/// Lommel–Seeliger: 4 · (1 − μ_o · ln(1 + 1/μ_o)), μ_o = max(ω_o·ẑ, 0) (4 at μ_o = 0;
+/// 1.23 at μ_o = 1; [`DIFFUSE_MU_MIN`]'s cap left out, which changes it only for
+/// μ_o < 0.1). An environment's diffuse term is k_d · E(n) · this: exact for a constant
+/// map and a flat texel, an approximation for a tilted one.
 #[inline]
-pub fn cloth_diffuse_env_factor(law: DiffuseLaw, n: Vec3, wo: Vec3) -> f32 {
+pub fn cloth_diffuse_env_factor(law: DiffuseLaw, wo: Vec3) -> f32 {
     match law {
         DiffuseLaw::Lambert => 1.0,
         DiffuseLaw::LommelSeeliger => {
-            let mu_o = n.dot(wo).max(0.0);
+            let mu_o = wo.z.max(0.0);
             if mu_o > 1e-6 { 4.0 * (1.0 - mu_o * (1.0 + 1.0 / mu_o).ln()) } else { 4.0 }
         }
     }

@@ -256,7 +256,7 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
     let n0 = b.frames[0].n;
     let mut r = Vec3::ZERO;
     if kd.max_element() > 0.0 {
-        r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, n0, wo));
+        r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, wo));
     }
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
         let mut group = EnvGroup::default();

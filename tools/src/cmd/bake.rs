@@ -98,7 +98,8 @@ pub struct BakeArgs {
     #[arg(long, value_enum, default_value = "width")]
     pub reading: ReadingArg,
     /// The surface's diffuse law: Lambert's k_d·max(n·ω_i, 0), or Lommel–Seeliger's
-    /// k_d·max(n·ω_i, 0)·2/(μ_i + μ_o) (format 1.6; baker/FIT_MEASUREMENTS.md measures both).
+    /// k_d·max(n·ω_i, 0)·2/(μ_i + μ_o), μ the cosines to the tile's normal (format 1.6;
+    /// baker/FIT_MEASUREMENTS.md measures both).
     #[arg(long, value_enum, default_value = "lommel-seeliger")]
     pub diffuse: DiffuseArg,
     /// Keep the geometry stage's texel frames instead of fitting a frame offset per
