@@ -16,7 +16,7 @@ use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
 
 fn settings() -> FitSettings {
-    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, evals_per_dim: 40 }
+    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40 }
 }
 
 /// The mean response of `candidates` (equal shares) at each pair, with k_d = 0.
@@ -345,31 +345,43 @@ fn view_tilts_bring_grazing_far_views_closer_and_leave_views_from_above_alone() 
 }
 
 #[test]
-fn a_lommel_seeliger_chain_is_its_lambert_twins() {
-    // Level 0 with the Lommel–Seeliger diffuse law (format 1.6). Its factor is one
-    // number per direction pair for the whole footprint (μ about the tile's normal), so
-    // the chain is fitted in Lambert's terms (prefilter::PREFILTER_DIFFUSE): the same
-    // records as the Lambert model's, shaded with the law. From above with the light at
-    // 60° the law lifts the diffuse part by 2 / (0.5 + 1) = 1.33.
+fn a_lommel_seeliger_chain_is_fitted_with_its_law() {
+    // Level 0 with the Lommel–Seeliger diffuse law (format 1.6): the coarse levels are
+    // fitted to its responses under that law and shaded with it. The factor is one
+    // number per direction pair for a whole footprint (μ about the tile's normal), so
+    // a chain fitted in Lambert's terms and shaded with the law (`unaware`) is also a
+    // sound chain, weighted differently: the law lifts grazing pairs up to 20×, and the
+    // fit with the law spends more of its error budget there. Both are measured.
     let mut m = synthetic_model(64, 7);
     m.levels.truncate(1);
     m.levels[0].flyaways = None;
     m.meta.fit_error.truncate(1);
     let o = PrefilterOptions { max_lobes: 8, ..Default::default() };
-    let (lambert, _) = prefilter(&m, &o, &NoProgress).unwrap();
+    let (mut unaware, _) = prefilter(&m, &o, &NoProgress).unwrap();
+    let lambert = unaware.clone();
     m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
+    unaware.meta.diffuse = m.meta.diffuse;
     let (out, _) = prefilter(&m, &o, &NoProgress).unwrap();
     assert_eq!(out.meta.diffuse, m.meta.diffuse);
-    assert_eq!(out.levels, lambert.levels);
+    assert_ne!(out.levels[1..], unaware.levels[1..], "the law changes the coarse fit");
     let light = [Light::directional(fabric_runtime::scene::direction_from_angles(60.0, 20.0), Vec3::ONE)];
-    for level in [2usize, 3] {
-        let cam = far_camera_at(&out, 0.0, 0.0, 64 >> level);
+    // Measured: from above, levels 2 and 3: 6.9% and 6.8% (in Lambert's terms 4.6% and
+    // 3.8%; the Lambert model's own chain 5.9% and 6.0%); at 60°, level 2: 7.9% (in
+    // Lambert's terms 10.8%; the Lambert model's 6.7%). The grazing views decide: the
+    // twill bake's far views agree (baker/FIT_MEASUREMENTS.md, "Lommel–Seeliger diffuse").
+    for (polar, level, bound) in [(0.0, 2usize, 0.09), (0.0, 3, 0.09), (60.0, 2, 0.1)] {
+        let cam = far_camera_at(&out, polar, 0.0, 64 >> level);
         let render_at = |model: &HybridModel, l: u32, s: u32| render(model, &cam, &light, &CpuRenderOptions { level: LevelChoice::Fixed(l), periodic: true, supersampling: s, ..Default::default() }).unwrap();
-        let (truth, chain) = (render_at(&out, 0, 16), render_at(&out, level as u32, 1));
-        let (e, e_lambert) = (relative_rmse(&chain, &truth).unwrap(), relative_rmse(&render_at(&lambert, level as u32, 1), &render_at(&lambert, 0, 16)).unwrap());
-        // Measured 4.6% (level 2) and 3.8% (level 3); the Lambert model's chain 5.9% and 6.0%.
-        eprintln!("level {level} from above, light at 60°: {e:.4} (the Lambert model's chain: {e_lambert:.4})");
-        assert!(e < 0.07, "level {level}: {e}");
+        let truth = render_at(&out, 0, 16);
+        let chain = render_at(&out, level as u32, 1);
+        let e = relative_rmse(&chain, &truth).unwrap();
+        let e_unaware = relative_rmse(&render_at(&unaware, level as u32, 1), &truth).unwrap();
+        let e_lambert = relative_rmse(&render_at(&lambert, level as u32, 1), &render_at(&lambert, 0, 16)).unwrap();
+        eprintln!("view {polar}°, level {level}: {e:.4} (fitted in Lambert's terms {e_unaware:.4}; the Lambert model's own chain {e_lambert:.4})");
+        assert!(e < bound, "view {polar}°, level {level}: {e}");
+        if polar > 45.0 {
+            assert!(e < e_unaware, "view {polar}°: fitted with the law {e} vs in Lambert's terms {e_unaware}");
+        }
         assert!(chain.mean() > 1.05 * render_at(&lambert, level as u32, 1).mean(), "the law brightens the diffuse part");
     }
 }

@@ -22,7 +22,7 @@
 
 use glam::{Mat3, Vec3};
 
-use fabric_runtime::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothLobe, GAMMA_MAX, GAMMA_MIN, K_MAX, MAX_LOBES, cloth_angles, cloth_fresnel, cloth_fresnel_cos, cloth_frame, cloth_lobe_shape, cloth_shadowing};
+use fabric_runtime::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothLobe, DiffuseLaw, GAMMA_MAX, GAMMA_MIN, K_MAX, MAX_LOBES, cloth_angles, cloth_diffuse_cosine, cloth_fresnel, cloth_fresnel_cos, cloth_frame, cloth_lobe_shape, cloth_shadowing};
 
 use super::pairs::Pair;
 use crate::fit::nnls::nnls_gram;
@@ -67,6 +67,8 @@ pub struct FitSettings {
     /// At most this many lobes (1..=8).
     pub max_lobes: usize,
     pub reading: BrdfReading,
+    /// The model's diffuse law (the coarse texel's k_d is shaded by it too).
+    pub diffuse: DiffuseLaw,
     /// Nelder–Mead evaluations per free width.
     pub evals_per_dim: usize,
 }
@@ -338,7 +340,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
             moments(&members, kd_n)
         }));
         let caches: Vec<GroupCache> = groups.iter().map(|m| cache(m, eta, a, pairs)).collect();
-        let diffuse: Vec<f32> = pairs.iter().map(|(wi, _)| groups[0].n.dot(*wi).max(0.0)).collect();
+        let diffuse: Vec<f32> = pairs.iter().map(|&(wi, wo)| cloth_diffuse_cosine(s.diffuse, groups[0].n, wi, wo)).collect();
         let start: Vec<(f32, f32)> = groups.iter().map(|m| (m.beta, m.gamma)).collect();
         let mut widths = start.clone();
         let mut sol = solve(&caches, &widths, &diffuse, target, s.reading, target2);

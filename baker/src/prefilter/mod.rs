@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use fabric_runtime::brdf::MAX_LOBES;
-use fabric_runtime::brdf::{BrdfReading, DiffuseLaw};
+use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
 use fabric_runtime::brdf::{ClothTransmission, cloth_frame, cloth_mirror_z};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
@@ -47,16 +47,6 @@ use pairs::{Pair, fit_pairs};
 /// chain shrinks from 64–65% of level 0's bytes to ~35% (the ⅓ asked) and the
 /// prefilter runs 5× faster. Up to [`MAX_LOBES`] stay available (`--prefilter-max-lobes`).
 pub const DEFAULT_MAX_LOBES: usize = 2;
-
-/// The diffuse law the chain is fitted in: Lambert's, whatever the model's. A model's
-/// Lommel–Seeliger factor 2/(μ_i + μ_o) takes μ about the tile's normal, so it is one
-/// number for all texels of a footprint: fitting the coarse k_d, lobes and view tilts
-/// to Lambert responses and shading them with the model's law gives the footprint's
-/// mean under that law exactly as well as under Lambert's. Fitting to the law's own
-/// responses instead weights the grazing pairs, where the factor reaches 20, far above
-/// the rest: measured on the synthetic model, level 2 from above, 6.9% against 4.6%
-/// (test `a_lommel_seeliger_chain_is_its_lambert_twins`).
-pub const PREFILTER_DIFFUSE: DiffuseLaw = DiffuseLaw::Lambert;
 
 /// How to prefilter.
 #[derive(Clone, Debug, PartialEq)]
@@ -186,7 +176,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     }
     let start = Instant::now();
     let pairs = fit_pairs(opts.pairs, opts.seed);
-    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, evals_per_dim: opts.evals_per_dim };
+    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim };
     let mut out = model.clone();
     out.levels.truncate(1);
     let mut report = PrefilterReport { pairs: pairs.len(), tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
@@ -395,7 +385,7 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
     let gy = (tracer.depth_at(x, y + 0.5 * texel.y) - tracer.depth_at(x, y - 0.5 * texel.y)) / texel.y;
     let seen = |w: Vec3| !tracer.occluded(p, w, f32::MAX, VISIBILITY_STEPS).0;
     for (a, &(wi, wo)) in acc.iter_mut().zip(pairs) {
-        let f = texel_response(b, wi, wo, reading, PREFILTER_DIFFUSE);
+        let f = texel_response(b, wi, wo, reading, model.meta.diffuse);
         let lit = if !shadowed || seen(wi) { 1.0 } else { 0.0 };
         let area = if !masking { 1.0 } else if seen(wo) { (gx * wo.x + gy * wo.y + wo.z).max(0.0) } else { 0.0 };
         a.num += area * lit * f;

@@ -297,7 +297,7 @@ impl VisibleHits {
                                     }
                                     m[k] += hk as f32;
                                     for (q, &wi) in lights[k].iter().enumerate() {
-                                        s[k * nl + q] += hk as f32 * lum(texel_response(&b, wi, dirs[k], reading, super::PREFILTER_DIFFUSE));
+                                        s[k * nl + q] += hk as f32 * lum(texel_response(&b, wi, dirs[k], reading, model.meta.diffuse));
                                     }
                                 }
                             }
@@ -336,7 +336,7 @@ impl VisibleHits {
                         tilt_frames(&mut tilted.frames[..n], &ViewTilt { b, c: [0.0; 2] }, dirs[k]);
                         for (q, &wi) in lights[k].iter().enumerate() {
                             let target = (sums[(c * nd + k) * nl + q] / mk) as f64;
-                            let model = lum(texel_response(&tilted, wi, dirs[k], reading, super::PREFILTER_DIFFUSE)) as f64;
+                            let model = lum(texel_response(&tilted, wi, dirs[k], reading, model.meta.diffuse)) as f64;
                             e2 += weight * (model - target) * (model - target);
                             t2 += weight * target * target;
                         }
