@@ -240,6 +240,8 @@ pub struct BakeReport {
     /// identity without the frame fit, all equal unless the lobes have their own).
     pub frame_offsets: Vec<Vec<FrameOffset>>,
     pub reading: String,
+    /// The surface's diffuse law (`lambert` or `lommel-seeliger`; format 1.6).
+    pub diffuse: String,
     pub shadows: bool,
     pub volumetric: bool,
     pub surface_mask: SurfaceMask,
@@ -685,6 +687,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         cluster_problems,
         frame_offsets: offsets.clone(),
         reading: options.fit.reading.name().into(),
+        diffuse: options.fit.diffuse.name().into(),
         shadows: options.shadows,
         volumetric: options.volumetric,
         surface_mask: options.surface_mask,

@@ -38,6 +38,9 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);
+    // The default diffuse law (format 1.6), in the model and the report.
+    assert_eq!(b.model.meta.diffuse, fabric_runtime::brdf::DiffuseLaw::LommelSeeliger);
+    assert_eq!(r.diffuse, "lommel-seeliger");
     // The file round-trips bit for bit.
     let bytes = format::to_bytes(&b.model).unwrap();
     assert_eq!(format::read(&bytes).unwrap(), b.model);
