@@ -80,7 +80,7 @@ void main() {
         LevelMix m = level_mix_axes(e.u.x != 0u, e.a.xy, e.a.zw);
         o.x = vec4(float(m.lo), float(m.hi), m.weight, float(m.taps));
         o.y = vec4(m.axis, float(m.fly_lo), float(m.fly_hi));
-        o.z = vec4(m.fly_weight, 0.0, 0.0, 0.0);
+        o.z = vec4(m.fly_weight, float(m.taps_minor), m.minor_axis);
     } else if (e.kind == 6u) {
         // model.glsl: texel lookups
         uvec2 ij;

@@ -4,6 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, MAX_ANISOTROPY, box_grid};
 use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -110,7 +111,10 @@ fn level_follows_the_pixel_footprint() {
         // Auto blends levels ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ clamped to the chain; a
         // round footprint: one lookup).
         let (image, _) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() }).unwrap();
-        let lambda = ((64.0 / pixels as f32).log2() + fabric_runtime::cpu::render::FILTER_OFFSET + bias).clamp(0.0, 4.0);
+        // Past λ = 1 the box grid reads a finer level (λ − log2 G, at least 1).
+        let rho = 64.0 / pixels as f32;
+        let lambda = (rho.log2() + fabric_runtime::cpu::render::FILTER_OFFSET + bias).max(0.0);
+        let lambda = box_grid(rho, rho, 1, lambda, bias).map_or(lambda, |g| g.lambda).min(4.0);
         let expect = Vec3::new(0.1 + 0.2 * lambda, 0.5, 0.9 - 0.2 * lambda);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px, λ {lambda}: {}", image.get(pixels / 2, pixels / 2));
     }
@@ -123,6 +127,50 @@ fn level_follows_the_pixel_footprint() {
     let cam = Camera { origin: Vec3::new(0.5, -0.3, 0.4), target: Vec3::new(0.5, 0.6, 0.0), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 40, height: 40 };
     let (_, stats) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     assert!(stats.level_pixels.iter().filter(|&&c| c > 0).count() >= 3, "{:?}", stats.level_pixels);
+}
+
+/// The box filter's grid (render.rs, `box_grid`): each axis keeps the pixel's variance
+/// P²/12 (grid s²(G² − 1)/12 plus a lookup's T²/4), never reads level 0 through the
+/// grid, and grows out of the one-lookup rule continuously.
+#[test]
+fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
+    assert!(FILTER_GRID >= 2, "the grid is on");
+    let variance = |span: f32, taps: u32, level: f32| {
+        let s = span / taps as f32;
+        s * s * (taps * taps - 1) as f32 / 12.0 + (2.0 * level).exp2() / 4.0
+    };
+    let mut grids = 0;
+    for (major, minor) in [(8.0f32, 8.0f32), (12.0, 5.0), (40.0, 5.0), (100.0, 11.0), (6.0, 4.0), (3.0, 3.0), (1.0, 0.5), (16.0, 1.0)] {
+        for bias in [0.0f32, 0.5, -0.5] {
+            let n = ((major / minor - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
+            let lambda = (major / n as f32).log2() + FILTER_OFFSET + bias;
+            let Some(g) = box_grid(major, minor, n, lambda, bias) else {
+                assert!(lambda <= 1.0, "{major}×{minor}: λ {lambda} reads no grid");
+                continue;
+            };
+            grids += 1;
+            assert!(g.lambda >= 1.0 && g.lambda <= lambda, "{major}×{minor}: {g:?}");
+            assert!(g.taps_major >= 1 && g.taps_major <= MAX_ANISOTROPY.max(n) && g.taps_minor <= FILTER_GRID, "{g:?}");
+            let scale = (2.0 * bias).exp2();
+            for (p, span, taps) in [(major, g.span_major, g.taps_major), (minor, g.span_minor, g.taps_minor)] {
+                let want = p * p * scale / 12.0;
+                let got = variance(span, taps, g.lambda);
+                // Where level 1's own lookup is wider than the pixel, no spread: the
+                // lookup's width alone.
+                if span > 0.0 {
+                    assert!((got - want).abs() <= 1e-3 * want, "{major}×{minor}, bias {bias}: variance {got} against the box's {want} ({g:?})");
+                } else {
+                    assert!(got >= want * (1.0 - 1e-3), "{major}×{minor}: {got} < {want}");
+                }
+            }
+        }
+    }
+    assert!(grids >= 12, "{grids} footprints read a grid");
+    // Continuity at λ = 1: just past it the grid's spread is (nearly) nothing.
+    let edge = (1.0 - FILTER_OFFSET).exp2();
+    let g = box_grid(edge * 1.001, edge * 1.001, 1, 1.0 + 1.001f32.log2(), 0.0).unwrap();
+    assert!(g.span_major < 0.2 && g.span_minor < 0.2 && g.lambda == 1.0, "{g:?}");
+    assert!(box_grid(edge, edge, 1, 1.0, 0.0).is_none());
 }
 
 #[test]

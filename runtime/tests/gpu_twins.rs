@@ -184,6 +184,8 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     // How many march inputs end in a hit, a step limit, a crossed flyaway: the test must
     // exercise each outcome, not agree on misses.
     let (mut hits, mut limits, mut crossed) = (0, 0, 0);
+    // Level choices that read a box grid (lookups across both axes).
+    let mut box_grids = 0;
     let rel = |a: f32, b: f32, floor: f32| (a - b).abs() / a.abs().max(b.abs()).max(floor);
     for (e, g) in inputs.iter().zip(&out) {
         let k = e.kind as usize;
@@ -234,8 +236,11 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             5 => {
                 let axes = (e.u[0] != 0).then(|| (Vec2::new(e.a[0], e.a[1]), Vec2::new(e.a[2], e.a[3])));
                 let m = scene.level_mix_axes(axes);
-                let same = (m.lo as f32, m.hi as f32, m.taps as f32, m.fly.0 as f32, m.fly.1 as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w);
-                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(((m.axis - Vec2::new(gy.x, gy.y)).abs().max_element()) / m.axis.length().max(1e-30)) }
+                let same = (m.lo as f32, m.hi as f32, m.taps as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
+                box_grids += (m.taps_minor > 1) as usize;
+                let axis = ((m.axis - Vec2::new(gy.x, gy.y)).abs().max_element()) / m.axis.length().max(1e-30);
+                let minor = ((m.minor_axis - Vec2::new(gz.z, gz.w)).abs().max_element()) / m.minor_axis.length().max(m.axis.length()).max(1e-30);
+                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(axis).max(minor) }
             }
             6 => {
                 let p = Vec4::from(e.a).truncate();
@@ -274,6 +279,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     }
     println!("marches: {hits} hits and {limits} step limits of {per_kind} rays, {crossed} of {per_kind} flyaway marches cross a voxel");
     assert!(hits > per_kind / 4 && limits > 0 && crossed > per_kind / 4, "inputs too easy: {hits} hits, {limits} limits, {crossed} crossings");
+    assert!(box_grids > per_kind / 10, "only {box_grids} of {per_kind} level choices read a box grid");
     let names = ["packing", "height-field march", "shadow rays", "flyaway march", "texel response", "level choice", "texel lookups", "scalars", "spread axes"];
     for k in 0..9 {
         println!("{} tile, {}: {} of {per_kind} differ, worst agreeing error {:.1e}", if periodic { "periodic" } else { "clamped" }, names[k], mismatches[k], worst[k]);

@@ -2,7 +2,7 @@
 // ray meets the surface (DESIGN.md §7; the rule of LevelChoice in runtime/src/cpu/mod.rs).
 //
 // Twin: runtime/src/cpu/render.rs (LevelMix, linear_levels, MAX_ANISOTROPY,
-// FILTER_OFFSET, Scene::level_mix, Scene::footprint_axes_at). The footprint comes from
+// FILTER_OFFSET, FILTER_GRID, box_grid, Scene::level_mix, Scene::footprint_axes_at). The footprint comes from
 // the rays through the neighbouring pixels, as on the CPU, not from screen-space
 // derivatives: the two renderers choose the same levels.
 #ifndef LEVEL_GLSL
@@ -13,22 +13,67 @@
 
 #define MAX_ANISOTROPY 8u
 const float FILTER_OFFSET = -0.79248125;
+#define FILTER_GRID 2u
 
-// Surface levels lo (weight 1 - weight) and hi (weight); `taps` lookups over `axis`;
-// flyaway levels fly_lo, fly_hi with fly_weight.
+// Surface levels lo (weight 1 - weight) and hi (weight); a grid of `taps` lookups over
+// `axis` by `taps_minor` over `minor_axis`; flyaway levels fly_lo, fly_hi with fly_weight.
 struct LevelMix {
     uint lo;
     uint hi;
     float weight;
     vec2 axis;
     uint taps;
+    vec2 minor_axis;
+    uint taps_minor;
     uint fly_lo;
     uint fly_hi;
     float fly_weight;
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, level, level, 0.0);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0);
+}
+
+// The box filter's grid at coarse levels: FILTER_GRID lookups per axis (N * G along the
+// major one) at level `level`, spread over `span_major`, `span_minor` level-0 texels so
+// that each axis keeps the pixel's variance. False: the one-lookup rule. Twin: box_grid.
+struct BoxGrid {
+    float level;
+    uint taps_major;
+    uint taps_minor;
+    float span_major;
+    float span_minor;
+};
+
+float box_span(float p, uint g, float kernel, float scale) {
+    if (g <= 1u) {
+        return 0.0;
+    }
+    float s2 = max(p * p * scale / 12.0 - kernel, 0.0) * 12.0 / float(g * g - 1u);
+    return sqrt(s2) * float(g);
+}
+
+bool box_grid(float major, float minor, uint n, float lambda, float bias, out BoxGrid g) {
+    g = BoxGrid(lambda, 1u, 1u, 0.0, 0.0);
+    if (FILTER_GRID <= 1u || !(lambda > 1.0)) {
+        return false;
+    }
+    uint taps_major = min(n * FILTER_GRID, max(MAX_ANISOTROPY, n));
+    float level = max(log2(major / float(taps_major)) + FILTER_OFFSET + bias, 1.0);
+    float kernel = exp2(2.0 * level) / 4.0;
+    float scale = exp2(2.0 * bias);
+    float span_major = box_span(major, taps_major, kernel, scale);
+    float span_minor = box_span(minor, FILTER_GRID, kernel, scale);
+    g.level = level;
+    if (span_major > 1e-3) {
+        g.taps_major = taps_major;
+        g.span_major = span_major;
+    }
+    if (span_minor > 1e-3) {
+        g.taps_minor = FILTER_GRID;
+        g.span_minor = span_minor;
+    }
+    return true;
 }
 
 // Levels floor(lambda) and floor(lambda) + 1 with the weight of the second, clamped.
@@ -91,6 +136,7 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     float major = la >= lb ? la : lb;
     float minor = la >= lb ? lb : la;
     vec2 axis = la >= lb ? a : b;
+    vec2 minor_axis = la >= lb ? b : a;
     if (!(major > 0.0)) {
         return level_single(0u);
     }
@@ -104,10 +150,21 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     uint taps = uint(clamp(ceil(major / max(minor, 1e-6) - 1e-3), 1.0, float(MAX_ANISOTROPY)));
     float lambda = log2(major / float(taps)) + FILTER_OFFSET + bias;
     LevelMix m;
-    linear_levels(lambda, last, m.lo, m.hi, m.weight);
-    m.axis = axis;
-    m.taps = taps;
     linear_levels(log2(major) + bias, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    BoxGrid g;
+    if (!box_grid(major, minor, taps, lambda, bias, g)) {
+        linear_levels(lambda, last, m.lo, m.hi, m.weight);
+        m.axis = axis;
+        m.taps = taps;
+        m.minor_axis = vec2(0.0);
+        m.taps_minor = 1u;
+        return m;
+    }
+    linear_levels(g.level, last, m.lo, m.hi, m.weight);
+    m.axis = axis * (g.span_major / major);
+    m.taps = g.taps_major;
+    m.minor_axis = minor_axis * (g.span_minor / max(minor, 1e-6));
+    m.taps_minor = g.taps_minor;
     return m;
 }
 

@@ -228,52 +228,62 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
 }
 
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
-// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of `taps` spread over
-// `axis` (world x-y) centred on p. Returns its weight.
-float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, uint k, out TexelRef r) {
+// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of the grid of `taps`
+// lookups over `axis` by `taps_minor` over `minor_axis` (world x-y spans) centred on p.
+// Returns its weight.
+vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap) {
+    uint ka = tap % taps;
+    uint kb = tap / taps;
+    return axis * ((float(ka) + 0.5) / float(taps) - 0.5) + minor_axis * ((float(kb) + 0.5) / float(taps_minor) - 0.5);
+}
+
+float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint k, out TexelRef r) {
     if (level == 0u) {
         uvec2 ij0 = texel_at(p, 0u);
         r = texel_brdf(0u, ij0.x, ij0.y);
         return 1.0;
     }
-    uint tap = k >> 2;
-    float n = float(taps);
-    vec2 offset = taps <= 1u ? vec2(0.0) : axis * ((float(tap) + 0.5) / n - 0.5);
+    uint n = taps * taps_minor;
+    vec2 offset = n <= 1u ? vec2(0.0) : tap_offset(axis, taps, minor_axis, taps_minor, k >> 2);
     uvec2 ij;
     float w = bilinear_texel(p + vec3(offset, 0.0), level, int(k & 3u), ij);
     r = texel_brdf(level, ij.x, ij.y);
     float v = seen_from(r, level, ij, wo);
-    return taps <= 1u ? w : w * v / n;
+    return n <= 1u ? w : w * v / float(n);
 }
 
 // 1 / the sum of surface_texel's weights where a level with view tilts is read by
-// anisotropic taps (each tap weighted by its texel's visibility), else 1: the weights
-// alone (bilinear weight times v), no texel decoded. Twin: normalize_weights in
+// several taps (each tap weighted by its texel's visibility; 1 where no v differs from
+// 1, as straight down), else 1: the weights alone (bilinear weight times v), no texel
+// decoded. Twin: normalize_weights in
 // Scene::shade_surface.
-float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps) {
+float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor) {
     GpuLevel l = model.levels[level];
-    if (level == 0u || taps <= 1u || l.tilt_base == NO_NODE) {
+    uint n = taps * taps_minor;
+    if (level == 0u || n <= 1u || l.tilt_base == NO_NODE) {
         return 1.0;
     }
-    float n = float(taps);
     float total = 0.0;
-    for (uint c = 0u; c < 4u * taps; ++c) {
-        vec2 offset = axis * ((float(c >> 2) + 0.5) / n - 0.5);
+    bool weighted = false;
+    for (uint c = 0u; c < 4u * n; ++c) {
+        vec2 offset = tap_offset(axis, taps, minor_axis, taps_minor, c >> 2);
         uvec2 ij;
         float w = bilinear_texel(p + vec3(offset, 0.0), level, int(c & 3u), ij);
-        total += w * view_visibility(packed_view_tilt(l.tilt_base + ij.y * l.dims.x + ij.x), wo) / n;
+        float v = view_visibility(packed_view_tilt(l.tilt_base + ij.y * l.dims.x + ij.x), wo);
+        weighted = weighted || v != 1.0;
+        total += w * v / float(n);
     }
-    return total > 0.0 ? 1.0 / total : 1.0;
+    return weighted && total > 0.0 ? 1.0 / total : 1.0;
 }
 
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
 // light's visibility once.
-vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowed, bool volumetric, inout uint limited) {
+vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
-    uint count = level == 0u ? 1u : 4u * taps;
-    float scale = surface_weight_scale(level, p, wo, axis, taps);
+    uint count = level == 0u ? 1u : 4u * taps * taps_minor;
+    float scale = surface_weight_scale(level, p, wo, axis, taps, minor_axis, taps_minor);
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
@@ -289,7 +299,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
                 vec3 through = vec3(0.0);
                 for (uint c = 0u; c < count; ++c) {
                     TexelRef r;
-                    float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
+                    float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
                     through += w * texel_transmission_response(r, e, true, wi, wo);
                 }
                 radiance += irradiance * through;
@@ -299,7 +309,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
         vec3 response = vec3(0.0);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
+            float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
             response += w * texel_response(r, e, true, wi, wo, reading, diffuse);
         }
         if (max3(response) <= 0.0) {
@@ -311,7 +321,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, bool shadowe
     if (HAS_ENV) {
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, axis, taps, c, r) * scale;
+            float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
         }
     }

@@ -56,7 +56,7 @@ vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, inout uin
     vec3 p = o + t * d;
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
-    return shade_blend(level, p, -d, mix_.axis, mix_.taps, shadowed, volumetric, shadow_limited);
+    return shade_blend(level, p, -d, mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, shadowed, volumetric, shadow_limited);
 }
 
 // One ray, shaded with the levels choose_levels gives where it meets the surface (the

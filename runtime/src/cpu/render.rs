@@ -62,6 +62,10 @@ pub struct LevelMix {
     /// `axis` (world x–y, the footprint's major axis), centred on the hit.
     pub axis: Vec2,
     pub taps: u32,
+    /// Lookups across the footprint: `taps_minor` spread over `minor_axis` for each of
+    /// the `taps` along `axis` (1: the major axis alone).
+    pub minor_axis: Vec2,
+    pub taps_minor: u32,
     /// The flyaway levels (lo, hi, weight of hi): from the isotropic footprint without
     /// [`FILTER_OFFSET`] — voxels are not filtered like texels, and a finer level than
     /// the pixel aliases their coverage.
@@ -70,7 +74,7 @@ pub struct LevelMix {
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, fly: (level, level, 0.0) }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0) }
     }
 }
 
@@ -92,6 +96,54 @@ pub const MAX_ANISOTROPY: u32 = 8;
 /// view at 30° azimuth (16 px across a 128² tile): 22.6% without it, see
 /// baker/PREFILTER_MEASUREMENTS.md.
 pub const FILTER_OFFSET: f32 = -0.792_481_25;
+
+/// Lookups per axis of the box filter at coarse levels (`box_grid`).
+pub const FILTER_GRID: u32 = 2;
+
+/// The box filter's grid of lookups: `taps_major` × `taps_minor` bilinear lookups at
+/// level `lambda`, spread over spans (level-0 texels) of the footprint's two axes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxGrid {
+    pub lambda: f32,
+    pub taps_major: u32,
+    pub taps_minor: u32,
+    pub span_major: f32,
+    pub span_minor: f32,
+}
+
+/// A pixel's box is not a texel's square: where its rows run at an angle to the tile
+/// (a far view at 30° azimuth), one bilinear lookup as wide as the pixel misses the
+/// box's shape, though not its variance. A grid of `FILTER_GRID` lookups per axis (N·G
+/// along the major axis) one level finer, spread so that each axis's variance — grid
+/// s²(G² − 1)/12 plus a lookup's T²/4, T = 2^λ — is still the pixel's P²/12, follows the
+/// box more closely (baker/PREFILTER_MEASUREMENTS.md, "The box filter"). Level 0 is
+/// never read through the grid (it is shaded by its nearest texel), so λ stops at 1 and
+/// the spread shrinks to 0 as λ of the one-lookup rule falls to 1: the filter's width
+/// is continuous in distance. None: the one-lookup rule (`lambda` ≤ 1, or no grid).
+/// Footprint lengths in level-0 texels; `n` the anisotropic lookups, `lambda` their level.
+pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32) -> Option<BoxGrid> {
+    if FILTER_GRID <= 1 || !(lambda > 1.0) {
+        return None;
+    }
+    let taps_major = (n * FILTER_GRID).min(MAX_ANISOTROPY.max(n));
+    let level = ((major / taps_major as f32).log2() + FILTER_OFFSET + bias).max(1.0);
+    let kernel = (2.0 * level).exp2() / 4.0;
+    let scale = (2.0 * bias).exp2();
+    // s²(G² − 1)/12 = P²/12 − T²/4, as a span s·G.
+    let span = |p: f32, g: u32| -> f32 {
+        if g <= 1 {
+            return 0.0;
+        }
+        let s2 = (p * p * scale / 12.0 - kernel).max(0.0) * 12.0 / (g * g - 1) as f32;
+        s2.sqrt() * g as f32
+    };
+    let span_major = span(major, taps_major);
+    let span_minor = span(minor, FILTER_GRID);
+    // A spread of (nearly) nothing is one lookup.
+    let (taps_major, span_major) = if span_major > 1e-3 { (taps_major, span_major) } else { (1, 0.0) };
+    let (taps_minor, span_minor) = if span_minor > 1e-3 { (FILTER_GRID, span_minor) } else { (1, 0.0) };
+    Some(BoxGrid { lambda: level, taps_major, taps_minor, span_major, span_minor })
+}
 
 /// One level's flyaways along a ray.
 struct FlyShade {
@@ -179,7 +231,7 @@ impl<'a> Scene<'a> {
         };
         let texel = self.model.texel_size();
         let (la, lb) = ((a / texel).length(), (b / texel).length());
-        let (major, minor, axis) = if la >= lb { (la, lb, a) } else { (lb, la, b) };
+        let (major, minor, axis, minor_axis) = if la >= lb { (la, lb, a, b) } else { (lb, la, b, a) };
         if !(major > 0.0) {
             return LevelMix::single(0);
         }
@@ -194,11 +246,15 @@ impl<'a> Scene<'a> {
         // Anisotropic (Vulkan's rule, EXT_texture_filter_anisotropic): N = ⌈major/minor⌉
         // lookups along the major axis at the level of major/N.
         // 1e-3: a round footprint measured as 8.00001 × 8 is one lookup, not two.
-        let taps = ((major / minor.max(1e-6) - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
-        let lambda = (major / taps as f32).log2() + FILTER_OFFSET + bias;
-        let (lo, hi, weight) = linear_levels(lambda, last);
+        let n = ((major / minor.max(1e-6) - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
+        let lambda = (major / n as f32).log2() + FILTER_OFFSET + bias;
         let fly = linear_levels(major.log2() + bias, last);
-        LevelMix { lo, hi, weight, axis, taps, fly }
+        let Some(grid) = box_grid(major, minor, n, lambda, bias) else {
+            let (lo, hi, weight) = linear_levels(lambda, last);
+            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly };
+        };
+        let (lo, hi, weight) = linear_levels(grid.lambda, last);
+        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -422,17 +478,25 @@ impl<'a> Scene<'a> {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
             shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)
-        } else if mix.taps <= 1 {
+        } else if mix.taps <= 1 && mix.taps_minor <= 1 {
             let texels = self.bilinear_texels_seen(p, level, wo).map(|(b, w, _)| (edited(b), w));
             shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>()
         } else {
-            let n = mix.taps;
-            let mut texels = Vec::with_capacity(4 * n as usize);
-            for k in 0..n {
-                let offset = mix.axis * ((k as f32 + 0.5) / n as f32 - 0.5);
-                texels.extend(self.bilinear_texels_seen(p + offset.extend(0.0), level, wo).map(|(b, w, v)| (edited(b), w * v / n as f32)));
+            let (n, m) = (mix.taps, mix.taps_minor);
+            let share = 1.0 / (n * m) as f32;
+            let mut texels = Vec::with_capacity(4 * (n * m) as usize);
+            // Whether a view tilt's visibility weighted a tap (none does straight down,
+            // where the weights are left as they are: the same image as without tilts).
+            let mut weighted = false;
+            for k in 0..n * m {
+                let (ka, kb) = (k % n, k / n);
+                let offset = mix.axis * ((ka as f32 + 0.5) / n as f32 - 0.5) + mix.minor_axis * ((kb as f32 + 0.5) / m as f32 - 0.5);
+                texels.extend(self.bilinear_texels_seen(p + offset.extend(0.0), level, wo).map(|(b, w, v)| {
+                    weighted |= v != 1.0;
+                    (edited(b), w * v * share)
+                }));
             }
-            if l.view_tilt.is_some() {
+            if l.view_tilt.is_some() && weighted {
                 normalize_weights(&mut texels);
             }
             shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>()
