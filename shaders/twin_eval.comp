@@ -24,11 +24,12 @@ struct TwinInput {
     vec4 c;
 };
 
-// 48 bytes; gpu_twins.rs TwinOutput.
+// 64 bytes; gpu_twins.rs TwinOutput.
 struct TwinOutput {
     vec4 x;
     vec4 y;
     vec4 z;
+    vec4 w;
 };
 
 layout(std430, set = 0, binding = 9) readonly buffer Inputs { TwinInput inputs[]; };
@@ -48,7 +49,7 @@ void main() {
         g_lights[k] = params.lights[k];
     }
     TwinInput e = inputs[n];
-    TwinOutput o = TwinOutput(vec4(0.0), vec4(0.0), vec4(0.0));
+    TwinOutput o = TwinOutput(vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0));
     if (e.kind == 0u) {
         // packing.glsl
         vec3 nrm = octahedral_decode(e.u.x);
@@ -81,6 +82,8 @@ void main() {
         o.x = vec4(float(m.lo), float(m.hi), m.weight, float(m.taps));
         o.y = vec4(m.axis, float(m.fly_lo), float(m.fly_hi));
         o.z = vec4(m.fly_weight, float(m.taps_minor), m.minor_axis);
+        o.w = vec4(m.fly_axis_a, m.fly_axis_b);
+        o.x.w += 1000.0 * float(m.fly_grid);
     } else if (e.kind == 6u) {
         // model.glsl: texel lookups
         uvec2 ij;

@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, MAX_ANISOTROPY, box_grid};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, MAX_ANISOTROPY, box_grid, fly_box_grid};
 use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -114,7 +114,7 @@ fn level_follows_the_pixel_footprint() {
         // Past λ = 1 the box grid reads a finer level (λ − log2 G, at least 1).
         let rho = 64.0 / pixels as f32;
         let lambda = (rho.log2() + fabric_runtime::cpu::render::FILTER_OFFSET + bias).max(0.0);
-        let lambda = box_grid(rho, rho, 1, lambda, bias).map_or(lambda, |g| g.lambda).min(4.0);
+        let lambda = box_grid(rho, rho, 1, lambda, bias, FILTER_GRID).map_or(lambda, |g| g.lambda).min(4.0);
         let expect = Vec3::new(0.1 + 0.2 * lambda, 0.5, 0.9 - 0.2 * lambda);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px, λ {lambda}: {}", image.get(pixels / 2, pixels / 2));
     }
@@ -144,7 +144,8 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
         for bias in [0.0f32, 0.5, -0.5] {
             let n = ((major / minor - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
             let lambda = (major / n as f32).log2() + FILTER_OFFSET + bias;
-            let Some(g) = box_grid(major, minor, n, lambda, bias) else {
+            assert!(box_grid(major, minor, n, lambda, bias, 1).is_none(), "the bilinear filter reads no grid");
+            let Some(g) = box_grid(major, minor, n, lambda, bias, FILTER_GRID) else {
                 assert!(lambda <= 1.0, "{major}×{minor}: λ {lambda} reads no grid");
                 continue;
             };
@@ -168,9 +169,17 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     assert!(grids >= 12, "{grids} footprints read a grid");
     // Continuity at λ = 1: just past it the grid's spread is (nearly) nothing.
     let edge = (1.0 - FILTER_OFFSET).exp2();
-    let g = box_grid(edge * 1.001, edge * 1.001, 1, 1.0 + 1.001f32.log2(), 0.0).unwrap();
+    let g = box_grid(edge * 1.001, edge * 1.001, 1, 1.0 + 1.001f32.log2(), 0.0, FILTER_GRID).unwrap();
     assert!(g.span_major < 0.2 && g.span_minor < 0.2 && g.lambda == 1.0, "{g:?}");
-    assert!(box_grid(edge, edge, 1, 1.0, 0.0).is_none());
+    assert!(box_grid(edge, edge, 1, 1.0, 0.0, FILTER_GRID).is_none());
+    // The flyaways' grid: one ray up to λ = 1, level 1 with a growing spread to λ = 2,
+    // then one level finer over the whole footprint; continuous in λ.
+    for (lambda, want) in [(0.5f32, (0.5f32, 0.0f32)), (1.0, (1.0, 0.0)), (1.25, (1.0, 0.25)), (2.0, (1.0, 1.0)), (3.5, (2.5, 1.0))] {
+        assert_eq!(fly_box_grid(lambda, FILTER_GRID), want, "λ {lambda}");
+        assert_eq!(fly_box_grid(lambda, 1), (lambda, 0.0));
+    }
+    let step = |l: f32| fly_box_grid(l + 1e-4, FILTER_GRID).0 - fly_box_grid(l - 1e-4, FILTER_GRID).0;
+    assert!(step(1.0).abs() < 1e-3 && step(2.0).abs() < 1e-3);
 }
 
 #[test]

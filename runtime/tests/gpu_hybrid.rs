@@ -6,7 +6,7 @@
 
 #![cfg(feature = "gpu")]
 
-use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
+use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{FlyawayInput, HybridModel, examples};
 use fabric_runtime::image::Image;
@@ -92,6 +92,15 @@ fn gpu_matches_the_cpu_twin() {
         let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &case);
         assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
     }
+    // The one-lookup coarse filter (`--coarse-filter bilinear`, specialization constant
+    // 7) in both twins, and a different image from the box grid's.
+    let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };
+    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &bilinear);
+    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", bilinear.name);
+    let boxed = render(&synthetic, &far_synth, &lights, &CpuRenderOptions { periodic: true, ..opts.clone() }).unwrap();
+    let one = render(&synthetic, &far_synth, &lights, &bilinear.options).unwrap();
+    let apart = relative_rmse(&one, &boxed).unwrap();
+    assert!(apart > 1e-3, "the two coarse filters drew the same image ({apart})");
     assert_no_validation_errors(&device);
 }
 

@@ -44,6 +44,7 @@ struct TwinOutput {
     x: [f32; 4],
     y: [f32; 4],
     z: [f32; 4],
+    w: [f32; 4],
 }
 
 fn evaluate(device: &CheckedDevice, model: &HybridModel, periodic: bool, inputs: &[TwinInput]) -> Vec<TwinOutput> {
@@ -236,11 +237,15 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             5 => {
                 let axes = (e.u[0] != 0).then(|| (Vec2::new(e.a[0], e.a[1]), Vec2::new(e.a[2], e.a[3])));
                 let m = scene.level_mix_axes(axes);
-                let same = (m.lo as f32, m.hi as f32, m.taps as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
-                box_grids += (m.taps_minor > 1) as usize;
+                // x.w holds taps + 1000 · fly_grid.
+                let same = (m.lo as f32, m.hi as f32, (m.taps + 1000 * m.fly_grid) as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
+                box_grids += (m.taps_minor > 1 && m.fly_grid > 1) as usize;
+                let gw = Vec4::from(g.w);
+                let scale = m.fly_axes.0.length().max(m.fly_axes.1.length()).max(1e-30);
+                let fly_axes = (m.fly_axes.0 - Vec2::new(gw.x, gw.y)).abs().max_element().max((m.fly_axes.1 - Vec2::new(gw.z, gw.w)).abs().max_element()) / scale;
                 let axis = ((m.axis - Vec2::new(gy.x, gy.y)).abs().max_element()) / m.axis.length().max(1e-30);
                 let minor = ((m.minor_axis - Vec2::new(gz.z, gz.w)).abs().max_element()) / m.minor_axis.length().max(m.axis.length()).max(1e-30);
-                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(axis).max(minor) }
+                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(axis).max(minor).max(fly_axes) }
             }
             6 => {
                 let p = Vec4::from(e.a).truncate();

@@ -13,7 +13,6 @@
 
 #define MAX_ANISOTROPY 8u
 const float FILTER_OFFSET = -0.79248125;
-#define FILTER_GRID 2u
 
 // Surface levels lo (weight 1 - weight) and hi (weight); a grid of `taps` lookups over
 // `axis` by `taps_minor` over `minor_axis`; flyaway levels fly_lo, fly_hi with fly_weight.
@@ -28,10 +27,25 @@ struct LevelMix {
     uint fly_lo;
     uint fly_hi;
     float fly_weight;
+    // The flyaways' box grid: fly_grid x fly_grid parallel rays spread over the spans
+    // fly_axis_a, fly_axis_b (world x-y), each marching the fly levels (1: the ray alone).
+    vec2 fly_axis_a;
+    vec2 fly_axis_b;
+    uint fly_grid;
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u);
+}
+
+// The flyaways' box grid at flyaway level lambda: the level its rays march and the
+// fraction of the footprint they spread over (x, y). Twin: fly_box_grid.
+vec2 fly_box_grid(float lambda, uint grid) {
+    if (grid <= 1u || !(lambda > 1.0)) {
+        return vec2(lambda, 0.0);
+    }
+    float finer = lambda - min(log2(float(grid)), 1.0);
+    return vec2(max(finer, 1.0), min(lambda - 1.0, 1.0));
 }
 
 // The box filter's grid at coarse levels: FILTER_GRID lookups per axis (N * G along the
@@ -150,7 +164,11 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     uint taps = uint(clamp(ceil(major / max(minor, 1e-6) - 1e-3), 1.0, float(MAX_ANISOTROPY)));
     float lambda = log2(major / float(taps)) + FILTER_OFFSET + bias;
     LevelMix m;
-    linear_levels(log2(major) + bias, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    vec2 fly = fly_box_grid(log2(major) + bias, FILTER_GRID);
+    linear_levels(fly.x, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    m.fly_grid = fly.y > 0.0 ? FILTER_GRID : 1u;
+    m.fly_axis_a = fly.y > 0.0 ? a * fly.y : vec2(0.0);
+    m.fly_axis_b = fly.y > 0.0 ? b * fly.y : vec2(0.0);
     BoxGrid g;
     if (!box_grid(major, minor, taps, lambda, bias, g)) {
         linear_levels(lambda, last, m.lo, m.hi, m.weight);

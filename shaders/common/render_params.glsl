@@ -72,5 +72,8 @@ layout(constant_id = 5) const bool HAS_ENV = false;
 // A light behind the sheet and a model with a transmission term (a BSDF, format 1.3):
 // off, a frame with every light in front pays nothing for transmission.
 layout(constant_id = 6) const bool TRANSMISSION = false;
+// Lookups per axis of the coarse levels' box grid (level.glsl, box_grid; 1: one bilinear
+// lookup per anisotropic tap). Twin: CoarseFilter::grid.
+layout(constant_id = 7) const uint FILTER_GRID = 2u;
 
 #endif // RENDER_PARAMS_GLSL

@@ -91,16 +91,33 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     out_.level = int(mix_.lo);
     float t_end = out_.surface ? hit.t : t_top + model.height_scale / -d.z;
     uint shadow_limited = 0u;
-    // The flyaways in front, blended over their levels.
+    // The flyaways in front: over a box grid (fly_grid^2 parallel rays over the fly
+    // axes; one ray without), each ray blended over its levels. One march call site.
     vec3 fly_radiance = vec3(0.0);
     float fly_transmittance = 0.0;
     bool fly_blend = mix_.fly_weight > 0.0 && mix_.fly_hi != mix_.fly_lo;
-    for (uint k = 0u; k < (fly_blend ? 2u : 1u); ++k) {
-        float w = fly_blend ? (k == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
-        FlyawayMarch fly = march_level_flyaways(o, d, t_top, t_end, k == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
-        fly_radiance = k == 0u ? fly.radiance * w : fly_radiance + fly.radiance * w;
-        fly_transmittance = k == 0u ? fly.transmittance * w : fly_transmittance + fly.transmittance * w;
+    uint fly_levels = fly_blend ? 2u : 1u;
+    uint fg = max(mix_.fly_grid, 1u);
+    float share = 1.0 / float(fg * fg);
+    vec3 ray_radiance = vec3(0.0);
+    float ray_transmittance = 0.0;
+    for (uint k = 0u; k < fg * fg * fly_levels; ++k) {
+        uint ray = k / fly_levels;
+        uint lk = k % fly_levels;
+        vec3 ro = o;
+        if (fg > 1u) {
+            vec2 offset = mix_.fly_axis_a * ((float(ray % fg) + 0.5) / float(fg) - 0.5) + mix_.fly_axis_b * ((float(ray / fg) + 0.5) / float(fg) - 0.5);
+            ro = o + vec3(offset, 0.0);
+        }
+        float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
+        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, t_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
+        ray_radiance = lk == 0u ? fly.radiance * w : ray_radiance + fly.radiance * w;
+        ray_transmittance = lk == 0u ? fly.transmittance * w : ray_transmittance + fly.transmittance * w;
         out_.step_limited = out_.step_limited || fly.limited;
+        if (lk + 1u == fly_levels) {
+            fly_radiance += ray_radiance * share;
+            fly_transmittance += ray_transmittance * share;
+        }
     }
     out_.flyaway_opacity = 1.0 - fly_transmittance;
     // What they let through sees the surface, blended over its levels.

@@ -62,6 +62,31 @@ pub enum ShadowMode {
     Off,
 }
 
+/// How coarse levels (≥ 1) are filtered (render.rs, `box_grid`; runtime/HYBRID_FORMAT.md §6).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CoarseFilter {
+    /// A grid of `render::FILTER_GRID` lookups per axis one level finer, spread to keep
+    /// the pixel's variance (`render::box_grid`), and the flyaways marched along as many
+    /// parallel rays over the footprint one level finer (`render::fly_box_grid`): closer
+    /// to the pixel's box (baker/PREFILTER_MEASUREMENTS.md, "The box filter"), at a
+    /// multiple of the far views' frame time (runtime/GPU_MEASUREMENTS.md).
+    #[default]
+    Box,
+    /// One bilinear lookup per anisotropic tap, as wide as the pixel, and one flyaway
+    /// ray at the footprint's level: cheaper far away.
+    Bilinear,
+}
+
+impl CoarseFilter {
+    /// Lookups per axis of the filter's grid (1: none).
+    pub fn grid(self) -> u32 {
+        match self {
+            CoarseFilter::Box => render::FILTER_GRID,
+            CoarseFilter::Bilinear => 1,
+        }
+    }
+}
+
 /// How to render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CpuRenderOptions {
@@ -84,6 +109,9 @@ pub struct CpuRenderOptions {
     /// away this takes fewer steps and flattens relief finer than the pixel; off (the
     /// default), the march is exact at every distance.
     pub coarse_relief: bool,
+    /// How coarse levels are filtered: a box grid of lookups (the default) or one
+    /// bilinear lookup per anisotropic tap (cheaper, less like the pixel's box).
+    pub coarse_filter: CoarseFilter,
     /// Appearance edits (identity by default).
     pub edits: Edits,
     /// Environment lighting (env_shading.rs): the prefiltered map's SG lookups plus its
@@ -135,6 +163,7 @@ impl Default for CpuRenderOptions {
             background: Vec3::ZERO,
             flyaways: true,
             coarse_relief: false,
+            coarse_filter: CoarseFilter::Box,
             edits: Edits::default(),
             env: None,
         }

@@ -68,13 +68,17 @@ pub struct LevelMix {
     pub taps_minor: u32,
     /// The flyaway levels (lo, hi, weight of hi): from the isotropic footprint without
     /// [`FILTER_OFFSET`] — voxels are not filtered like texels, and a finer level than
-    /// the pixel aliases their coverage.
+    /// the pixel aliases their coverage — or, through a box grid, one level finer.
     pub fly: (usize, usize, f32),
+    /// The flyaways' box grid: `fly_grid` × `fly_grid` parallel rays spread over the
+    /// spans `fly_axes` (world x–y), each marching `fly`'s levels (1: the ray alone).
+    pub fly_axes: (Vec2, Vec2),
+    pub fly_grid: u32,
 }
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0) }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_grid: 1 }
     }
 }
 
@@ -97,7 +101,7 @@ pub const MAX_ANISOTROPY: u32 = 8;
 /// baker/PREFILTER_MEASUREMENTS.md.
 pub const FILTER_OFFSET: f32 = -0.792_481_25;
 
-/// Lookups per axis of the box filter at coarse levels (`box_grid`).
+/// Lookups per axis of the box filter at coarse levels (`box_grid`, `CoarseFilter::Box`).
 pub const FILTER_GRID: u32 = 2;
 
 /// The box filter's grid of lookups: `taps_major` × `taps_minor` bilinear lookups at
@@ -119,13 +123,14 @@ pub struct BoxGrid {
 /// box more closely (baker/PREFILTER_MEASUREMENTS.md, "The box filter"). Level 0 is
 /// never read through the grid (it is shaded by its nearest texel), so λ stops at 1 and
 /// the spread shrinks to 0 as λ of the one-lookup rule falls to 1: the filter's width
-/// is continuous in distance. None: the one-lookup rule (`lambda` ≤ 1, or no grid).
-/// Footprint lengths in level-0 texels; `n` the anisotropic lookups, `lambda` their level.
-pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32) -> Option<BoxGrid> {
-    if FILTER_GRID <= 1 || !(lambda > 1.0) {
+/// is continuous in distance. None: the one-lookup rule (`lambda` ≤ 1, or `grid` ≤ 1).
+/// Footprint lengths in level-0 texels; `n` the anisotropic lookups, `lambda` their level,
+/// `grid` the lookups per axis ([`CoarseFilter::grid`]).
+pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32, grid: u32) -> Option<BoxGrid> {
+    if grid <= 1 || !(lambda > 1.0) {
         return None;
     }
-    let taps_major = (n * FILTER_GRID).min(MAX_ANISOTROPY.max(n));
+    let taps_major = (n * grid).min(MAX_ANISOTROPY.max(n));
     let level = ((major / taps_major as f32).log2() + FILTER_OFFSET + bias).max(1.0);
     let kernel = (2.0 * level).exp2() / 4.0;
     let scale = (2.0 * bias).exp2();
@@ -138,11 +143,27 @@ pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32) -> Optio
         s2.sqrt() * g as f32
     };
     let span_major = span(major, taps_major);
-    let span_minor = span(minor, FILTER_GRID);
+    let span_minor = span(minor, grid);
     // A spread of (nearly) nothing is one lookup.
     let (taps_major, span_major) = if span_major > 1e-3 { (taps_major, span_major) } else { (1, 0.0) };
-    let (taps_minor, span_minor) = if span_minor > 1e-3 { (FILTER_GRID, span_minor) } else { (1, 0.0) };
+    let (taps_minor, span_minor) = if span_minor > 1e-3 { (grid, span_minor) } else { (1, 0.0) };
     Some(BoxGrid { lambda: level, taps_major, taps_minor, span_major, span_minor })
+}
+
+/// The flyaways' box grid for a footprint at flyaway level `lambda` (log2 of its major
+/// axis in texels, plus the bias) and `grid` rays per axis: the level the rays march and
+/// the fraction of the pixel's footprint they spread over. A coarse voxel as wide as the
+/// pixel, met by one ray, is a nearest-texel lookup of its coverage: a pixel turned
+/// against the voxels' grid sees parts of four (baker/PREFILTER_MEASUREMENTS.md, "The box
+/// filter"). Past λ = 2 the rays march one level finer over the whole footprint; between
+/// 1 and 2 level 1 with the spread growing from nothing, so that the filter is
+/// continuous in distance; below 1 (or without a grid) one ray at λ.
+pub fn fly_box_grid(lambda: f32, grid: u32) -> (f32, f32) {
+    if grid <= 1 || !(lambda > 1.0) {
+        return (lambda, 0.0);
+    }
+    let finer = lambda - (grid as f32).log2().min(1.0);
+    (finer.max(1.0), (lambda - 1.0).min(1.0))
 }
 
 /// One level's flyaways along a ray.
@@ -248,13 +269,16 @@ impl<'a> Scene<'a> {
         // 1e-3: a round footprint measured as 8.00001 × 8 is one lookup, not two.
         let n = ((major / minor.max(1e-6) - 1e-3).ceil() as u32).clamp(1, MAX_ANISOTROPY);
         let lambda = (major / n as f32).log2() + FILTER_OFFSET + bias;
-        let fly = linear_levels(major.log2() + bias, last);
-        let Some(grid) = box_grid(major, minor, n, lambda, bias) else {
+        let g = self.options.coarse_filter.grid();
+        let (fly_lambda, fly_spread) = fly_box_grid(major.log2() + bias, g);
+        let fly = linear_levels(fly_lambda, last);
+        let (fly_axes, fly_grid) = if fly_spread > 0.0 { ((a * fly_spread, b * fly_spread), g) } else { ((Vec2::ZERO, Vec2::ZERO), 1) };
+        let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             let (lo, hi, weight) = linear_levels(lambda, last);
-            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly };
+            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_grid };
         };
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
-        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly }
+        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly, fly_axes, fly_grid }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -391,13 +415,31 @@ impl<'a> Scene<'a> {
         let t_end = out.surface_t.unwrap_or(t_top + self.model.tile.height_scale / -ray.d.z);
         // The flyaways in front, blended over their levels, then what they let through.
         let (fl, fh, fw) = mix.fly;
-        let mut fly = self.march_level_flyaways(ray, t_top, t_end, fl);
-        if fw > 0.0 && fh != fl {
-            let hi = self.march_level_flyaways(ray, t_top, t_end, fh);
-            fly.radiance = fly.radiance * (1.0 - fw) + hi.radiance * fw;
-            fly.transmittance = fly.transmittance * (1.0 - fw) + hi.transmittance * fw;
-            fly.limited |= hi.limited;
-            fly.shadow_limited += hi.shadow_limited;
+        // Over a box grid (`fly_grid`² parallel rays spread over `fly_axes`), each ray
+        // blending its two levels; one ray where there is no grid.
+        let (g, (fa, fb)) = (mix.fly_grid.max(1), mix.fly_axes);
+        let share = 1.0 / (g * g) as f32;
+        let mut fly = FlyShade { radiance: Vec3::ZERO, transmittance: 0.0, limited: false, shadow_limited: 0 };
+        for k in 0..g * g {
+            let r = if g == 1 {
+                *ray
+            } else {
+                let (ka, kb) = (k % g, k / g);
+                let offset = fa * ((ka as f32 + 0.5) / g as f32 - 0.5) + fb * ((kb as f32 + 0.5) / g as f32 - 0.5);
+                Ray::new(ray.o + offset.extend(0.0), ray.d)
+            };
+            let mut f = self.march_level_flyaways(&r, t_top, t_end, fl);
+            if fw > 0.0 && fh != fl {
+                let hi = self.march_level_flyaways(&r, t_top, t_end, fh);
+                f.radiance = f.radiance * (1.0 - fw) + hi.radiance * fw;
+                f.transmittance = f.transmittance * (1.0 - fw) + hi.transmittance * fw;
+                f.limited |= hi.limited;
+                f.shadow_limited += hi.shadow_limited;
+            }
+            fly.radiance += f.radiance * share;
+            fly.transmittance += f.transmittance * share;
+            fly.limited |= f.limited;
+            fly.shadow_limited += f.shadow_limited;
         }
         out.flyaway_opacity = 1.0 - fly.transmittance;
         out.step_limited |= fly.limited;

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use fabric_runtime::cpu::{CpuRenderOptions, EditMask, Edits, EnvLight, LevelChoice, ShadowMode, render_with_progress};
+use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, EditMask, Edits, EnvLight, LevelChoice, ShadowMode, render_with_progress};
 use fabric_runtime::scene::{ExtractOptions, Light, PrefilteredEnv};
 use fabric_runtime::hybrid::format::read_file;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -42,6 +42,11 @@ pub struct CpuRenderFlags {
     /// relief finer than a pixel flattened (off: exact at every distance).
     #[arg(long)]
     pub coarse_relief: bool,
+    /// How coarse levels are filtered: "box" (a 2×2 grid of lookups one level finer,
+    /// closer to the pixel's box) or "bilinear" (one lookup per anisotropic tap:
+    /// cheaper far away, runtime/GPU_MEASUREMENTS.md).
+    #[arg(long, default_value = "box", value_parser = ["box", "bilinear"])]
+    pub coarse_filter: String,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
     pub tint: glam::Vec3,
@@ -103,6 +108,7 @@ impl CpuRenderFlags {
             max_steps: self.max_steps,
             flyaways: !self.no_flyaways,
             coarse_relief: self.coarse_relief,
+            coarse_filter: if self.coarse_filter == "bilinear" { CoarseFilter::Bilinear } else { CoarseFilter::Box },
             edits,
             ..Default::default()
         })
@@ -190,7 +196,7 @@ mod tests {
         let camera = CameraArgs { view_angles: Some((30.0, -90.0)), size: (32, 24), up: glam::Vec3::Z, ..Default::default() };
         let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
         let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
-        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
+        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, coarse_filter: "box".into(), tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
         run(&model, &camera, &light, &EnvArgs::default(), &output, &flags).unwrap();
         let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
         assert_eq!((image.width, image.height), (32, 24));
