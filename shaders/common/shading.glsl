@@ -227,16 +227,18 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
     return radiance;
 }
 
-// Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
-// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of the grid of `taps`
-// lookups over `axis` by `taps_minor` over `minor_axis` (world x-y spans) centred on p.
-// Returns its weight.
+// Where lookup (or ray) `tap` of a grid lies: `taps` evenly over the span `axis` (world
+// x-y) by `taps_minor` over `minor_axis`, centred on the hit; the surface's grid and the
+// flyaways' rays share it. Twin: tap_offset (runtime/src/cpu/render.rs).
 vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap) {
     uint ka = tap % taps;
     uint kb = tap / taps;
     return axis * ((float(ka) + 0.5) / float(taps) - 0.5) + minor_axis * ((float(kb) + 0.5) / float(taps_minor) - 0.5);
 }
 
+// Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
+// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of the grid above.
+// Returns its weight.
 float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint k, out TexelRef r) {
     if (level == 0u) {
         uvec2 ij0 = texel_at(p, 0u);

@@ -106,8 +106,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         uint lk = k % fly_levels;
         vec3 ro = o;
         if (fg > 1u) {
-            vec2 offset = mix_.fly_axis_a * ((float(ray % fg) + 0.5) / float(fg) - 0.5) + mix_.fly_axis_b * ((float(ray / fg) + 0.5) / float(fg) - 0.5);
-            ro = o + vec3(offset, 0.0);
+            ro = o + vec3(tap_offset(mix_.fly_axis_a, fg, mix_.fly_axis_b, fg, ray), 0.0);
         }
         float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
         FlyawayMarch fly = march_level_flyaways(ro, d, t_top, t_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);

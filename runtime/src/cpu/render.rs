@@ -150,6 +150,14 @@ pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32, grid: u3
     Some(BoxGrid { lambda: level, taps_major, taps_minor, span_major, span_minor })
 }
 
+/// Where lookup (or ray) `tap` of a grid lies: `taps` evenly over the span `axis`
+/// (world x–y) by `taps_minor` over `minor_axis`, centred on the hit. The surface's grid
+/// and the flyaways' rays share it. Twin: `tap_offset` in shaders/common/shading.glsl.
+pub fn tap_offset(axis: Vec2, taps: u32, minor_axis: Vec2, taps_minor: u32, tap: u32) -> Vec2 {
+    let (ka, kb) = (tap % taps, tap / taps);
+    axis * ((ka as f32 + 0.5) / taps as f32 - 0.5) + minor_axis * ((kb as f32 + 0.5) / taps_minor as f32 - 0.5)
+}
+
 /// The flyaways' box grid for a footprint at flyaway level `lambda` (log2 of its major
 /// axis in texels, plus the bias) and `grid` rays per axis: the level the rays march and
 /// the fraction of the pixel's footprint they spread over. A coarse voxel as wide as the
@@ -424,9 +432,7 @@ impl<'a> Scene<'a> {
             let r = if g == 1 {
                 *ray
             } else {
-                let (ka, kb) = (k % g, k / g);
-                let offset = fa * ((ka as f32 + 0.5) / g as f32 - 0.5) + fb * ((kb as f32 + 0.5) / g as f32 - 0.5);
-                Ray::new(ray.o + offset.extend(0.0), ray.d)
+                Ray::new(ray.o + tap_offset(fa, g, fb, g, k).extend(0.0), ray.d)
             };
             let mut f = self.march_level_flyaways(&r, t_top, t_end, fl);
             if fw > 0.0 && fh != fl {
@@ -531,8 +537,7 @@ impl<'a> Scene<'a> {
             // where the weights are left as they are: the same image as without tilts).
             let mut weighted = false;
             for k in 0..n * m {
-                let (ka, kb) = (k % n, k / n);
-                let offset = mix.axis * ((ka as f32 + 0.5) / n as f32 - 0.5) + mix.minor_axis * ((kb as f32 + 0.5) / m as f32 - 0.5);
+                let offset = tap_offset(mix.axis, n, mix.minor_axis, m, k);
                 texels.extend(self.bilinear_texels_seen(p + offset.extend(0.0), level, wo).map(|(b, w, v)| {
                     weighted |= v != 1.0;
                     (edited(b), w * v * share)
