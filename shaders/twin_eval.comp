@@ -83,7 +83,7 @@ void main() {
         o.y = vec4(m.axis, float(m.fly_lo), float(m.fly_hi));
         o.z = vec4(m.fly_weight, float(m.taps_minor), m.minor_axis);
         o.w = vec4(m.fly_axis_a, m.fly_axis_b);
-        o.x.w += 1000.0 * float(m.fly_grid);
+        o.x.w += 1000.0 * float(m.fly_taps_a) + 100000.0 * float(m.fly_taps_b);
     } else if (e.kind == 6u) {
         // model.glsl: texel lookups
         uvec2 ij;

@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, MAX_ANISOTROPY, box_grid, fly_box_grid};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fly_box_grid};
 use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -172,14 +172,30 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     let g = box_grid(edge * 1.001, edge * 1.001, 1, 1.0 + 1.001f32.log2(), 0.0, FILTER_GRID).unwrap();
     assert!(g.span_major < 0.2 && g.span_minor < 0.2 && g.lambda == 1.0, "{g:?}");
     assert!(box_grid(edge, edge, 1, 1.0, 0.0, FILTER_GRID).is_none());
-    // The flyaways' grid: one ray up to λ = 1, level 1 with a growing spread to λ = 2,
-    // then one level finer over the whole footprint; continuous in λ.
-    for (lambda, want) in [(0.5f32, (0.5f32, 0.0f32)), (1.0, (1.0, 0.0)), (1.25, (1.0, 0.25)), (2.0, (1.0, 1.0)), (3.5, (2.5, 1.0))] {
-        assert_eq!(fly_box_grid(lambda, FILTER_GRID), want, "λ {lambda}");
-        assert_eq!(fly_box_grid(lambda, 1), (lambda, 0.0));
+    // The flyaways' grid: one ray up to λ = log2 major = 1, level 1 with a growing
+    // spread to λ = 2, then one level finer over the whole footprint; continuous in λ.
+    let fly = |lambda: f32, n: u32, grid: u32| {
+        let g = fly_box_grid(lambda.exp2(), n, 0.0, grid);
+        (g.lambda, g.spread, g.taps_major, g.taps_minor)
+    };
+    let close = |a: (f32, f32, u32, u32), b: (f32, f32, u32, u32)| (a.0 - b.0).abs() < 1e-5 && (a.1 - b.1).abs() < 1e-5 && (a.2, a.3) == (b.2, b.3);
+    for (lambda, want) in [(0.5f32, (0.5f32, 0.0f32, 1, 1)), (1.0, (1.0, 0.0, 1, 1)), (1.25, (1.0, 0.25, 2, 2)), (2.0, (1.0, 1.0, 2, 2)), (3.5, (2.5, 1.0, 2, 2))] {
+        assert!(close(fly(lambda, 1, FILTER_GRID), want), "λ {lambda}: {:?}", fly(lambda, 1, FILTER_GRID));
+        assert!(close(fly(lambda, 1, 1), (lambda, 0.0, 1, 1)));
     }
-    let step = |l: f32| fly_box_grid(l + 1e-4, FILTER_GRID).0 - fly_box_grid(l - 1e-4, FILTER_GRID).0;
-    assert!(step(1.0).abs() < 1e-3 && step(2.0).abs() < 1e-3);
+    // A footprint N times longer than wide: min(N, 2)·G rays along it, G across, at the
+    // level of the surface's N·G lookups (at most 8), major/(N·G), never below 1.
+    assert_eq!(FLY_MAX_ANISOTROPY, 2);
+    for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (1.0, 1.0, 4, 2)), (1.5, 2, (1.0, 0.5, 4, 2))] {
+        assert!(close(fly(lambda, n, FILTER_GRID), want), "λ {lambda}, N {n}: {:?}", fly(lambda, n, FILTER_GRID));
+    }
+    for n in [1u32, 2, 3, 8] {
+        let step = |l: f32| fly(l + 1e-4, n, FILTER_GRID).0 - fly(l - 1e-4, n, FILTER_GRID).0;
+        let spread = |l: f32| fly(l + 1e-4, n, FILTER_GRID).1 - fly(l - 1e-4, n, FILTER_GRID).1;
+        for l in [1.0f32, 2.0, 2.5, 3.0, 4.0] {
+            assert!(step(l).abs() < 1e-3 && spread(l).abs() < 1e-3, "N {n}: a jump at λ {l}");
+        }
+    }
 }
 
 #[test]

@@ -187,6 +187,8 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     let (mut hits, mut limits, mut crossed) = (0, 0, 0);
     // Level choices that read a box grid (lookups across both axes).
     let mut box_grids = 0;
+    // ... and flyaway grids longer along the footprint's major axis.
+    let mut anisotropic_fly_grids = 0;
     let rel = |a: f32, b: f32, floor: f32| (a - b).abs() / a.abs().max(b.abs()).max(floor);
     for (e, g) in inputs.iter().zip(&out) {
         let k = e.kind as usize;
@@ -237,9 +239,10 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             5 => {
                 let axes = (e.u[0] != 0).then(|| (Vec2::new(e.a[0], e.a[1]), Vec2::new(e.a[2], e.a[3])));
                 let m = scene.level_mix_axes(axes);
-                // x.w holds taps + 1000 · fly_grid.
-                let same = (m.lo as f32, m.hi as f32, (m.taps + 1000 * m.fly_grid) as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
-                box_grids += (m.taps_minor > 1 && m.fly_grid > 1) as usize;
+                // x.w holds taps + 1000 · fly_taps.0 + 100000 · fly_taps.1.
+                let same = (m.lo as f32, m.hi as f32, (m.taps + 1000 * m.fly_taps.0 + 100_000 * m.fly_taps.1) as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
+                box_grids += (m.taps_minor > 1 && m.fly_taps.1 > 1) as usize;
+                anisotropic_fly_grids += (m.fly_taps.0 > m.fly_taps.1) as usize;
                 let gw = Vec4::from(g.w);
                 let scale = m.fly_axes.0.length().max(m.fly_axes.1.length()).max(1e-30);
                 let fly_axes = (m.fly_axes.0 - Vec2::new(gw.x, gw.y)).abs().max_element().max((m.fly_axes.1 - Vec2::new(gw.z, gw.w)).abs().max_element()) / scale;
@@ -285,6 +288,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     println!("marches: {hits} hits and {limits} step limits of {per_kind} rays, {crossed} of {per_kind} flyaway marches cross a voxel");
     assert!(hits > per_kind / 4 && limits > 0 && crossed > per_kind / 4, "inputs too easy: {hits} hits, {limits} limits, {crossed} crossings");
     assert!(box_grids > per_kind / 10, "only {box_grids} of {per_kind} level choices read a box grid");
+    assert!(anisotropic_fly_grids > per_kind / 20, "only {anisotropic_fly_grids} of {per_kind} level choices march an anisotropic flyaway grid");
     let names = ["packing", "height-field march", "shadow rays", "flyaway march", "texel response", "level choice", "texel lookups", "scalars", "spread axes"];
     for k in 0..9 {
         println!("{} tile, {}: {} of {per_kind} differ, worst agreeing error {:.1e}", if periodic { "periodic" } else { "clamped" }, names[k], mismatches[k], worst[k]);

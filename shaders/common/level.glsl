@@ -27,25 +27,43 @@ struct LevelMix {
     uint fly_lo;
     uint fly_hi;
     float fly_weight;
-    // The flyaways' box grid: fly_grid x fly_grid parallel rays spread over the spans
-    // fly_axis_a, fly_axis_b (world x-y), each marching the fly levels (1: the ray alone).
+    // The flyaways' box grid: fly_taps_a x fly_taps_b parallel rays spread over the
+    // spans fly_axis_a (the footprint's major axis), fly_axis_b (world x-y), each
+    // marching the fly levels (1 x 1: the ray alone).
     vec2 fly_axis_a;
     vec2 fly_axis_b;
-    uint fly_grid;
+    uint fly_taps_a;
+    uint fly_taps_b;
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u);
 }
 
-// The flyaways' box grid at flyaway level lambda: the level its rays march and the
-// fraction of the footprint they spread over (x, y). Twin: fly_box_grid.
-vec2 fly_box_grid(float lambda, uint grid) {
+// Most flyaway rays along a footprint's major axis per ray across it. Twin:
+// FLY_MAX_ANISOTROPY.
+#define FLY_MAX_ANISOTROPY 2u
+
+// The flyaways' box grid for a footprint of `major` level-0 texels, `n` anisotropic
+// lookups: min(N, FLY_MAX_ANISOTROPY) * G rays along the major axis and G across it at
+// the level of the surface's lookups, major / min(N * G, 8), spread over the fraction
+// `spread` of the footprint (1 past log2 major = 2; from 0 at 1). Twin: fly_box_grid
+// (FlyGrid).
+struct FlyGrid {
+    float level;
+    float spread;
+    uint taps_major;
+    uint taps_minor;
+};
+
+FlyGrid fly_box_grid(float major, uint n, float bias, uint grid) {
+    float lambda = log2(major) + bias;
     if (grid <= 1u || !(lambda > 1.0)) {
-        return vec2(lambda, 0.0);
+        return FlyGrid(lambda, 0.0, 1u, 1u);
     }
-    float finer = lambda - min(log2(float(grid)), 1.0);
-    return vec2(max(finer, 1.0), min(lambda - 1.0, 1.0));
+    uint taps = min(max(n, 1u) * grid, max(MAX_ANISOTROPY, n));
+    float finer = lambda - min(log2(float(grid)), 1.0) - log2(float(taps) / float(grid));
+    return FlyGrid(max(finer, 1.0), min(lambda - 1.0, 1.0), clamp(n, 1u, FLY_MAX_ANISOTROPY) * grid, grid);
 }
 
 // The box filter's grid at coarse levels: FILTER_GRID lookups per axis (N * G along the
@@ -164,11 +182,13 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     uint taps = uint(clamp(ceil(major / max(minor, 1e-6) - 1e-3), 1.0, float(MAX_ANISOTROPY)));
     float lambda = log2(major / float(taps)) + FILTER_OFFSET + bias;
     LevelMix m;
-    vec2 fly = fly_box_grid(log2(major) + bias, FILTER_GRID);
-    linear_levels(fly.x, last, m.fly_lo, m.fly_hi, m.fly_weight);
-    m.fly_grid = fly.y > 0.0 ? FILTER_GRID : 1u;
-    m.fly_axis_a = fly.y > 0.0 ? a * fly.y : vec2(0.0);
-    m.fly_axis_b = fly.y > 0.0 ? b * fly.y : vec2(0.0);
+    FlyGrid fly = fly_box_grid(major, taps, bias, FILTER_GRID);
+    linear_levels(fly.level, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    bool fly_grid = fly.spread > 0.0;
+    m.fly_taps_a = fly_grid ? fly.taps_major : 1u;
+    m.fly_taps_b = fly_grid ? fly.taps_minor : 1u;
+    m.fly_axis_a = fly_grid ? axis * fly.spread : vec2(0.0);
+    m.fly_axis_b = fly_grid ? minor_axis * fly.spread : vec2(0.0);
     BoxGrid g;
     if (!box_grid(major, minor, taps, lambda, bias, g)) {
         linear_levels(lambda, last, m.lo, m.hi, m.weight);

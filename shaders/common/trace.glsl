@@ -91,22 +91,23 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     out_.level = int(mix_.lo);
     float t_end = out_.surface ? hit.t : t_top + model.height_scale / -d.z;
     uint shadow_limited = 0u;
-    // The flyaways in front: over a box grid (fly_grid^2 parallel rays over the fly
-    // axes; one ray without), each ray blended over its levels. One march call site.
+    // The flyaways in front: over a box grid (fly_taps_a x fly_taps_b parallel rays over
+    // the fly axes; one ray without), each ray blended over its levels. One march call site.
     vec3 fly_radiance = vec3(0.0);
     float fly_transmittance = 0.0;
     bool fly_blend = mix_.fly_weight > 0.0 && mix_.fly_hi != mix_.fly_lo;
     uint fly_levels = fly_blend ? 2u : 1u;
-    uint fg = max(mix_.fly_grid, 1u);
-    float share = 1.0 / float(fg * fg);
+    uint fga = max(mix_.fly_taps_a, 1u);
+    uint fgb = max(mix_.fly_taps_b, 1u);
+    float share = 1.0 / float(fga * fgb);
     vec3 ray_radiance = vec3(0.0);
     float ray_transmittance = 0.0;
-    for (uint k = 0u; k < fg * fg * fly_levels; ++k) {
+    for (uint k = 0u; k < fga * fgb * fly_levels; ++k) {
         uint ray = k / fly_levels;
         uint lk = k % fly_levels;
         vec3 ro = o;
-        if (fg > 1u) {
-            ro = o + vec3(tap_offset(mix_.fly_axis_a, fg, mix_.fly_axis_b, fg, ray), 0.0);
+        if (fga * fgb > 1u) {
+            ro = o + vec3(tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, ray), 0.0);
         }
         float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
         FlyawayMarch fly = march_level_flyaways(ro, d, t_top, t_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
