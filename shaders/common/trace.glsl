@@ -72,6 +72,27 @@ vec3 background(vec3 d) {
     return params.background.rgb;
 }
 
+// Where a flyaway ray of a box grid, parallel to the pixel's ray (which meets the
+// surface at t_end), meets the surface itself; the bottom of the flyaway layer where it
+// misses, the pixel's t_end where its step budget runs out. Steps count as the
+// pixel's. Twin: Scene::own_surface_end.
+float own_surface_end(vec3 o, vec3 d, float t_top, float t_end, int floor_level, inout PixelTrace out_) {
+    if (!RELIEF) {
+        return t_end;
+    }
+    uint steps = 0u;
+    HfTrace hit = hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps, floor_level);
+    out_.steps += steps;
+    if (hit.kind == HF_HIT) {
+        return hit.t;
+    }
+    if (hit.kind == HF_STEP_LIMIT) {
+        out_.step_limited = true;
+        return t_end;
+    }
+    return t_top + model.height_scale / -d.z;
+}
+
 PixelTrace trace_mixed(vec3 o, vec3 d) {
     PixelTrace out_ = PixelTrace(background(d), -1, false, 0.0, false, 0u, 0u);
     float t_top;
@@ -92,7 +113,8 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     float t_end = out_.surface ? hit.t : t_top + model.height_scale / -d.z;
     uint shadow_limited = 0u;
     // The flyaways in front: over a box grid (fly_taps_a x fly_taps_b parallel rays over
-    // the fly axes; one ray without), each ray blended over its levels. One march call site.
+    // the fly axes, each stopping where it meets the surface itself; one ray without),
+    // each ray blended over its levels. One march call site.
     vec3 fly_radiance = vec3(0.0);
     float fly_transmittance = 0.0;
     bool fly_blend = mix_.fly_weight > 0.0 && mix_.fly_hi != mix_.fly_lo;
@@ -102,15 +124,19 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     float share = 1.0 / float(fga * fgb);
     vec3 ray_radiance = vec3(0.0);
     float ray_transmittance = 0.0;
+    float ray_end = t_end;
     for (uint k = 0u; k < fga * fgb * fly_levels; ++k) {
         uint ray = k / fly_levels;
         uint lk = k % fly_levels;
         vec3 ro = o;
         if (fga * fgb > 1u) {
             ro = o + vec3(tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, ray), 0.0);
+            if (lk == 0u) {
+                ray_end = own_surface_end(ro, d, t_top, t_end, floor_level, out_);
+            }
         }
         float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
-        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, t_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
+        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, ray_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
         ray_radiance = lk == 0u ? fly.radiance * w : ray_radiance + fly.radiance * w;
         ray_transmittance = lk == 0u ? fly.transmittance * w : ray_transmittance + fly.transmittance * w;
         out_.step_limited = out_.step_limited || fly.limited;

@@ -453,15 +453,17 @@ impl<'a> Scene<'a> {
         // The flyaways in front, blended over their levels, then what they let through.
         let (fl, fh, fw) = mix.fly;
         // Over a box grid (`fly_taps` parallel rays spread over `fly_axes`), each ray
-        // blending its two levels; one ray where there is no grid.
+        // blending its two levels and stopping where it meets the surface itself; one ray
+        // where there is no grid.
         let ((ga, gb), (fa, fb)) = ((mix.fly_taps.0.max(1), mix.fly_taps.1.max(1)), mix.fly_axes);
         let share = 1.0 / (ga * gb) as f32;
         let mut fly = FlyShade { radiance: Vec3::ZERO, transmittance: 0.0, limited: false, shadow_limited: 0 };
         for k in 0..ga * gb {
-            let r = if ga * gb == 1 {
-                *ray
+            let (r, t_end) = if ga * gb == 1 {
+                (*ray, t_end)
             } else {
-                Ray::new(ray.o + tap_offset(fa, ga, fb, gb, k).extend(0.0), ray.d)
+                let r = Ray::new(ray.o + tap_offset(fa, ga, fb, gb, k).extend(0.0), ray.d);
+                (r, self.own_surface_end(&r, t_top, t_end, floor, &mut out))
             };
             let mut f = self.march_level_flyaways(&r, t_top, t_end, fl);
             if fw > 0.0 && fh != fl {
@@ -495,6 +497,25 @@ impl<'a> Scene<'a> {
         }
         out.radiance = fly.radiance + fly.transmittance * behind;
         out
+    }
+
+    /// Where a flyaway ray of a box grid, parallel to the pixel's ray (which meets the
+    /// surface at `t_end`), meets the surface itself: spread along a grazing footprint,
+    /// the pixel's hit lies at another place's depth (baker/PREFILTER_MEASUREMENTS.md, "Each flyaway ray to
+    /// its own surface"). The bottom of the flyaway layer where it misses a clamped tile;
+    /// the pixel's `t_end` where its step budget runs out. Steps count as the pixel's.
+    fn own_surface_end(&self, ray: &Ray, t_top: f32, t_end: f32, floor: usize, out: &mut PixelTrace) -> f32 {
+        let mut steps = 0;
+        let hit = self.tracer.trace_to(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps, floor);
+        out.steps += steps;
+        match hit {
+            HfTrace::Hit(t) => t,
+            HfTrace::Miss => t_top + self.model.tile.height_scale / -ray.d.z,
+            HfTrace::StepLimit => {
+                out.step_limited = true;
+                t_end
+            }
+        }
     }
 
     /// The flyaways of `level` over [t_top, t_end], composited front to back.
