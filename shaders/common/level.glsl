@@ -40,6 +40,12 @@ LevelMix level_single(uint level) {
     return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u);
 }
 
+// Lookups of the box grid along a footprint's major axis: G per anisotropic lookup, at
+// most MAX_ANISOTROPY (or N). Twin: grid_taps.
+uint grid_taps(uint n, uint grid) {
+    return min(n * grid, max(MAX_ANISOTROPY, n));
+}
+
 // Most flyaway rays along a footprint's major axis per ray across it. Twin:
 // FLY_MAX_ANISOTROPY.
 #define FLY_MAX_ANISOTROPY 2u
@@ -61,7 +67,7 @@ FlyGrid fly_box_grid(float major, uint n, float bias, uint grid) {
     if (grid <= 1u || !(lambda > 1.0)) {
         return FlyGrid(lambda, 0.0, 1u, 1u);
     }
-    uint taps = min(max(n, 1u) * grid, max(MAX_ANISOTROPY, n));
+    uint taps = grid_taps(max(n, 1u), grid);
     float finer = lambda - min(log2(float(grid)), 1.0) - log2(float(taps) / float(grid));
     return FlyGrid(max(finer, 1.0), min(lambda - 1.0, 1.0), clamp(n, 1u, FLY_MAX_ANISOTROPY) * grid, grid);
 }
@@ -90,7 +96,7 @@ bool box_grid(float major, float minor, uint n, float lambda, float bias, out Bo
     if (FILTER_GRID <= 1u || !(lambda > 1.0)) {
         return false;
     }
-    uint taps_major = min(n * FILTER_GRID, max(MAX_ANISOTROPY, n));
+    uint taps_major = grid_taps(n, FILTER_GRID);
     float level = max(log2(major / float(taps_major)) + FILTER_OFFSET + bias, 1.0);
     float kernel = exp2(2.0 * level) / 4.0;
     float scale = exp2(2.0 * bias);

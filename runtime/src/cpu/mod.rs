@@ -67,8 +67,8 @@ pub enum ShadowMode {
 pub enum CoarseFilter {
     /// A grid of `render::FILTER_GRID` lookups per axis one level finer, spread to keep
     /// the pixel's variance (`render::box_grid`), and the flyaways marched along as many
-    /// parallel rays over the footprint (N·G along a grazing footprint's major axis, at
-    /// the level of major/(N·G); `render::fly_box_grid`): closer
+    /// parallel rays over the footprint, each to its own surface (min(N, 2)·G along a
+    /// grazing footprint's major axis, at the lookups' level; `render::fly_box_grid`): closer
     /// to the pixel's box (baker/PREFILTER_MEASUREMENTS.md, "The box filter"), at a
     /// multiple of the far views' frame time (runtime/GPU_MEASUREMENTS.md).
     #[default]

@@ -132,7 +132,7 @@ pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32, grid: u3
     if grid <= 1 || !(lambda > 1.0) {
         return None;
     }
-    let taps_major = (n * grid).min(MAX_ANISOTROPY.max(n));
+    let taps_major = grid_taps(n, grid);
     let level = ((major / taps_major as f32).log2() + FILTER_OFFSET + bias).max(1.0);
     let kernel = (2.0 * level).exp2() / 4.0;
     let scale = (2.0 * bias).exp2();
@@ -150,6 +150,13 @@ pub fn box_grid(major: f32, minor: f32, n: u32, lambda: f32, bias: f32, grid: u3
     let (taps_major, span_major) = if span_major > 1e-3 { (taps_major, span_major) } else { (1, 0.0) };
     let (taps_minor, span_minor) = if span_minor > 1e-3 { (grid, span_minor) } else { (1, 0.0) };
     Some(BoxGrid { lambda: level, taps_major, taps_minor, span_major, span_minor })
+}
+
+/// Lookups of the box grid along a footprint's major axis: G per anisotropic lookup,
+/// at most [`MAX_ANISOTROPY`] (or N). The flyaways' grid marches at their level.
+/// Twin: `grid_taps` in shaders/common/level.glsl.
+pub fn grid_taps(n: u32, grid: u32) -> u32 {
+    (n * grid).min(MAX_ANISOTROPY.max(n))
 }
 
 /// Where lookup (or ray) `tap` of a grid lies: `taps` evenly over the span `axis`
@@ -197,7 +204,7 @@ pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
     // The level of the surface's N·G lookups (at most 8) along the major axis, about
     // the minor axis over G; G = 2 (the default) is one level finer for a round
     // footprint.
-    let taps = (n.max(1) * grid).min(MAX_ANISOTROPY.max(n));
+    let taps = grid_taps(n.max(1), grid);
     let finer = lambda - (grid as f32).log2().min(1.0) - (taps as f32 / grid as f32).log2();
     let taps_major = n.clamp(1, FLY_MAX_ANISOTROPY) * grid;
     FlyGrid { lambda: finer.max(1.0), spread: (lambda - 1.0).min(1.0), taps_major, taps_minor: grid }
@@ -501,9 +508,10 @@ impl<'a> Scene<'a> {
 
     /// Where a flyaway ray of a box grid, parallel to the pixel's ray (which meets the
     /// surface at `t_end`), meets the surface itself: spread along a grazing footprint,
-    /// the pixel's hit lies at another place's depth (baker/PREFILTER_MEASUREMENTS.md, "Each flyaway ray to
-    /// its own surface"). The bottom of the flyaway layer where it misses a clamped tile;
-    /// the pixel's `t_end` where its step budget runs out. Steps count as the pixel's.
+    /// the pixel's hit lies at another place's depth (baker/PREFILTER_MEASUREMENTS.md,
+    /// "Each flyaway ray to its own surface"). The bottom of the flyaway layer where it
+    /// misses a clamped tile; the pixel's `t_end` where its step budget runs out. Steps
+    /// count as the pixel's.
     fn own_surface_end(&self, ray: &Ray, t_top: f32, t_end: f32, floor: usize, out: &mut PixelTrace) -> f32 {
         let mut steps = 0;
         let hit = self.tracer.trace_to(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps, floor);
