@@ -37,6 +37,21 @@ fn spread_sample() -> HybridModel {
     m
 }
 
+/// The tilted sample with its per-texel levels snapped to the compact grid, as
+/// `fabric prefilter` leaves them: the writer stores them compactly (format 1.7).
+fn compact_sample() -> HybridModel {
+    use fabric_runtime::hybrid::compact;
+    let mut m = tilted_sample();
+    for l in &mut m.levels[1..] {
+        if let Surface::PerTexel(table) = &mut l.surface {
+            compact::quantize_table(table);
+        }
+        compact::quantize_view_tilts(l.view_tilt.as_mut().unwrap());
+    }
+    m.validate().expect("the compact sample is valid");
+    m
+}
+
 fn sample_bytes() -> Vec<u8> {
     format::to_bytes(&sample()).unwrap()
 }
@@ -218,6 +233,66 @@ fn view_tilt_corruption_catalogue() {
 }
 
 #[test]
+fn compact_levels_round_trip_bit_for_bit_in_fewer_bytes() {
+    let m = compact_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    let info = format::inspect(&bytes).unwrap();
+    let kinds = |level: u32| info.sections.iter().filter(|s| s.level == level).map(|s| s.kind.as_str()).collect::<Vec<_>>();
+    // Level 0 is clustered: wide. The per-texel levels: compact, and nothing wide beside.
+    assert!(kinds(0).contains(&"SURFACE_HEADERS") && !kinds(0).iter().any(|k| k.ends_with("_COMPACT")));
+    for level in 1..m.levels.len() as u32 {
+        let k = kinds(level);
+        for (compact, wide) in [("SURFACE_TEXELS_COMPACT", "SURFACE_HEADERS"), ("SURFACE_LOBES_COMPACT", "SURFACE_LOBES"), ("VIEW_TILT_COMPACT", "VIEW_TILT")] {
+            assert!(k.contains(&compact) && !k.contains(&wide), "level {level}: {k:?}");
+        }
+        // The statistics count what the file holds.
+        let stored: u64 = info.sections.iter().filter(|s| s.level == level && s.kind.starts_with("SURFACE") || s.level == level && s.kind.starts_with("VIEW_TILT")).map(|s| s.length).sum();
+        let st = &info.model.level_stats[level as usize];
+        assert_eq!(stored, st.surface_bytes + st.view_tilt_bytes, "level {level}");
+        let l = &m.levels[level as usize];
+        let lobes = match &l.surface {
+            Surface::PerTexel(t) => t.lobes.len() as u64,
+            _ => unreachable!(),
+        };
+        assert_eq!(st.surface_bytes, 8 * (l.width * l.height) as u64 + 12 * lobes);
+        assert_eq!(st.view_tilt_bytes, 6 * (l.width * l.height) as u64);
+    }
+    assert!(bytes.len() < format::to_bytes(&tilted_sample()).unwrap().len());
+    // The compact tilts are optional: a 1.6 reader that skipped them reads the rest.
+    let mut parts = Parts::of(&bytes);
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::ViewTiltCompact as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4003;
+    }
+    assert!(format::read(&parts.assemble()).unwrap().levels.iter().all(|l| l.view_tilt.is_none()));
+    // The compact surface records are required: a reader that does not know them refuses.
+    let mut parts = Parts::of(&bytes);
+    parts.entry(SectionKind::SurfaceTexelsCompact, 1).kind = 4004;
+    assert!(matches!(err(&parts.assemble()), FormatError::UnknownRequired { kind: 4004, .. }));
+}
+
+#[test]
+fn compact_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("reserved bit 15", |p| p.find(SectionKind::SurfaceTexelsCompact, 1)[7] |= 0x80, |e| matches!(e, FormatError::Section { kind, level: 1, why, .. } if kind == "SURFACE_TEXELS_COMPACT" && why.contains("record 0") && why.contains("reserved"))),
+        ("octahedral code off the grid", |p| p.find(SectionKind::SurfaceLobesCompact, 2)[12..14].copy_from_slice(&0x07ffu16.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, level: 2, why, .. } if kind == "SURFACE_LOBES_COMPACT" && why.contains("record 1"))),
+        ("lobe counts past the lobes", |p| p.find(SectionKind::SurfaceTexelsCompact, 1)[7] |= 0x70, |e| matches!(e, FormatError::Invalid(ModelError::LobeRange { level: 1, .. }))),
+        ("one texel short", |p| { let t = p.find(SectionKind::SurfaceTexelsCompact, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(_))),
+        ("not whole lobes", |p| p.find(SectionKind::SurfaceLobesCompact, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "SURFACE_LOBES_COMPACT")),
+        ("NaN β", |p| p.find(SectionKind::SurfaceLobesCompact, 1)[8..10].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::LobeParam { field: "beta", level: 1, .. }))),
+        ("a tilt past 8", |p| p.find(SectionKind::ViewTiltCompact, 1)[3] = 0x7f, |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "b11", level: 1, .. }))),
+        ("wide and compact headers together", |p| {
+            let (e, data) = p.sections.iter().find(|(e, _)| e.kind == SectionKind::SurfaceHeaders as u32 && e.level == 0).cloned().unwrap();
+            p.sections.push((SectionEntry { level: 1, ..e }, data));
+        }, |e| matches!(e, FormatError::Section { kind, level: 1, why, .. } if kind == "SURFACE_TEXELS_COMPACT" && why.contains("SURFACE_HEADERS"))),
+        ("compact records on the clustered level", |p| p.entry(SectionKind::SurfaceLobesCompact, 1).level = 0, |e| matches!(e, FormatError::Section { level: 0, why, .. } if why.contains("clustered"))),
+    ];
+    run_catalogue(&format::to_bytes(&compact_sample()).unwrap(), cases);
+}
+
+#[test]
 fn flyaway_spreads_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     let m = spread_sample();
     let bytes = format::to_bytes(&m).unwrap();
@@ -225,7 +300,7 @@ fn flyaway_spreads_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     // Optional: a 1.4 reader skips the section and shades each node with its one axis.
     let mut parts = Parts::of(&bytes);
     let mut skipped = 0;
-    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpread as u32) {
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpreadCompact as u32) {
         assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
         e.kind = 4002;
         skipped += 1;
@@ -233,21 +308,40 @@ fn flyaway_spreads_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     assert!(skipped > 0);
     let plain = format::read(&parts.assemble()).unwrap();
     assert_eq!(plain, sample());
+    // 1.7 writes them compact; a 1.5 file's wide records (reserved field 0) read the same.
+    let mut parts = Parts::of(&bytes);
+    assert!(parts.sections.iter().all(|(e, _)| e.kind != SectionKind::FlyawaySpread as u32));
+    widen_spreads(&mut parts);
+    assert_eq!(format::read(&parts.assemble()).unwrap(), m);
+    parts.find(SectionKind::FlyawaySpread, 1)[6] = 1;
+    assert!(matches!(err(&parts.assemble()), FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("reserved")));
+}
+
+/// Rewrites the compact spread sections as 1.5's wide ones (8 bytes, reserved 0).
+fn widen_spreads(parts: &mut Parts) {
+    for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpreadCompact as u32) {
+        e.kind = SectionKind::FlyawaySpread as u32;
+        *data = data.chunks_exact(6).flat_map(|c| [c[0], c[1], c[2], c[3], c[4], c[5], 0, 0]).collect();
+    }
 }
 
 #[test]
 fn flyaway_spread_corruption_catalogue() {
     type Edit = fn(&mut Parts);
     let cases: Vec<(&str, Edit, Expect)> = vec![
-        ("weights past 1", |p| p.find(SectionKind::FlyawaySpread, 1)[2..4].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("sum past 1"))),
-        ("a reversed depth range", |p| p.find(SectionKind::FlyawaySpread, 1)[12..14].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 1, why }) if why.contains("reversed"))),
-        ("reserved not 0", |p| p.find(SectionKind::FlyawaySpread, 1)[6] = 1, |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("reserved"))),
-        ("one record short", |p| { let t = p.find(SectionKind::FlyawaySpread, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
-        ("one record too many", |p| p.find(SectionKind::FlyawaySpread, 1).extend_from_slice(&[0; 8]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
-        ("not whole records", |p| p.find(SectionKind::FlyawaySpread, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_SPREAD")),
-        ("moved to a level of another node count", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 0, .. }))),
-        ("on a level without flyaways", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
-        ("for a level that does not exist", |p| p.entry(SectionKind::FlyawaySpread, 1).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+        ("weights past 1", |p| p.find(SectionKind::FlyawaySpreadCompact, 1)[2..4].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("sum past 1"))),
+        ("a reversed depth range", |p| p.find(SectionKind::FlyawaySpreadCompact, 1)[10..12].copy_from_slice(&[200, 100]), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 1, why }) if why.contains("reversed"))),
+        ("one record short", |p| { let t = p.find(SectionKind::FlyawaySpreadCompact, 1); t.truncate(t.len() - 6) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("one record too many", |p| p.find(SectionKind::FlyawaySpreadCompact, 1).extend_from_slice(&[0; 6]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::FlyawaySpreadCompact, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_SPREAD_COMPACT")),
+        ("moved to a level of another node count", |p| p.entry(SectionKind::FlyawaySpreadCompact, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway spread records", level: 0, .. }))),
+        ("on a level without flyaways", |p| p.entry(SectionKind::FlyawaySpreadCompact, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
+        ("for a level that does not exist", |p| p.entry(SectionKind::FlyawaySpreadCompact, 1).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+        ("wide and compact together", |p| {
+            let (e, data) = p.sections.iter().find(|(e, _)| e.kind == SectionKind::FlyawaySpreadCompact as u32 && e.level == 1).cloned().unwrap();
+            let wide: Vec<u8> = data.chunks_exact(6).flat_map(|c| [c[0], c[1], c[2], c[3], c[4], c[5], 0, 0]).collect();
+            p.sections.push((SectionEntry { kind: SectionKind::FlyawaySpread as u32, ..e }, wide));
+        }, |e| matches!(e, FormatError::Section { kind, level: 1, .. } if kind == "FLYAWAY_SPREAD_COMPACT")),
     ];
     run_catalogue(&format::to_bytes(&spread_sample()).unwrap(), cases);
 }
@@ -288,7 +382,7 @@ fn layout_follows_the_spec() {
 #[test]
 fn minor_versions_and_unknown_optional_sections_are_read() {
     let mut bytes = sample_bytes();
-    bytes[10..12].copy_from_slice(&7u16.to_le_bytes());
+    bytes[10..12].copy_from_slice(&9u16.to_le_bytes());
     reseal_header(&mut bytes);
     assert_eq!(format::read(&bytes).unwrap(), sample());
     let mut parts = Parts::of(&sample_bytes());
@@ -486,7 +580,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("diffuse_ls.hyb", {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
         m

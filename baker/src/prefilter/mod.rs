@@ -33,6 +33,7 @@ use fabric_runtime::cpu::heightfield::HeightTracer;
 use fabric_runtime::brdf::{ClothTransmission, cloth_frame, cloth_mirror_z};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
 use fabric_runtime::hybrid::{PackedTransmission, TexelBrdf, decode_frame, encode_frame};
+use fabric_runtime::hybrid::compact;
 use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
 
@@ -80,12 +81,16 @@ pub struct PrefilterOptions {
     /// Fit each coarse texel's view tilt (its frames turn toward the viewer as its
     /// footprint's visible normals do; [`view_tilt`]).
     pub view_tilt: bool,
+    /// Snap the coarse levels to the compact grid, so that the file stores them in the
+    /// compact records of format 1.7 ([`fabric_runtime::hybrid::compact`]): 8 + 12·L
+    /// bytes per texel instead of 16 + 16·L, 6 per view tilt instead of 12.
+    pub compact: bool,
     pub seed: u64,
 }
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, compact: true, seed: 1 }
     }
 }
 
@@ -293,13 +298,21 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
         let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread).map_err(PrefilterError::Output)? } else { None };
         let transmission_fit_error = bsdf.then(|| trans_error / n);
+        if opts.compact {
+            compact::quantize_table(&mut table);
+        }
         let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None };
         let t_level = Instant::now();
         let fitted = tilts.as_mut().map(|t| t.fit_level(model, level, &l, reading));
         report.view_tilt_seconds += t_level.elapsed().as_secs_f64();
         let mean_tilt = fitted.as_ref().map(|f| f.records.iter().map(|t| t.decode().b.iter().map(|b| (b * b) as f64).sum::<f64>().sqrt()).sum::<f64>() / f.records.len().max(1) as f64);
         let view_tilt_error = fitted.as_ref().map(|f| (f.error_untilted, f.error_tilted));
-        l.view_tilt = fitted.map(|f| f.records);
+        l.view_tilt = fitted.map(|mut f| {
+            if opts.compact {
+                compact::quantize_view_tilts(&mut f.records);
+            }
+            f.records
+        });
         report.levels.push(LevelReport {
             level,
             width: lw,

@@ -245,7 +245,7 @@ impl Flyaways {
 
     /// Bytes these lists take in the file (heads, nodes, spread records, table).
     pub fn byte_size(&self) -> u64 {
-        let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * size_of::<PackedAxisSpread>());
+        let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * if super::compact::compact_spreads(s).is_some() { size_of::<super::compact::CompactAxisSpread>() } else { size_of::<PackedAxisSpread>() });
         (self.heads.len() * 4 + self.nodes.len() * size_of::<FlyawayNode>() + spreads) as u64 + self.table.byte_size()
     }
 

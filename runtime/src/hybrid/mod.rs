@@ -5,6 +5,7 @@
 //! - [`lobe`]: packed BRDF records and tables (clustered or per-texel);
 //! - [`flyaway`]: the flyaway volume as per-texel linked lists;
 //! - [`packing`]: f16 / unorm16 / octahedral / tangent-angle packings and their errors;
+//! - [`compact`]: the smaller file records of the coarse levels (format 1.7);
 //! - [`format`]: the `.hyb` file (runtime/HYBRID_FORMAT.md), reader and writer;
 //! - [`gpu_layout`]: the model as plain-data arrays for the GPU (std430), and a frame's parameters;
 //! - [`stats`]: what `fabric inspect model.hyb` prints;
@@ -20,11 +21,14 @@
 //! | cluster / flyaway table entry  | 16 + 16 per lobe |
 //! | flyaway list head (per texel)  | 4                |
 //! | flyaway node                   | 16               |
+//! | compact per-texel header (1.7) | 8 + 12 per lobe  |
+//! | view tilt (coarse levels)      | 12, compact 6    |
 //!
 //! A 1024² model with a clustered level 0 (10 B/texel with its height: 10 MiB) and
 //! per-texel coarse levels (≈ 349 k texels, 16 + 16·L bytes each: 16.0 MiB at L = 2 lobes
 //! on average, 37.3 MiB at L = 6) lands in the paper's range.
 
+pub mod compact;
 pub mod error;
 pub mod examples;
 pub mod flyaway;

@@ -167,7 +167,7 @@ impl Level {
 
     /// Bytes of the view tilt records in the file (0 without).
     pub fn view_tilt_bytes(&self) -> u64 {
-        self.view_tilt.as_ref().map_or(0, |t| (t.len() * size_of::<PackedViewTilt>()) as u64)
+        self.view_tilt.as_ref().map_or(0, |t| super::compact::view_tilt_bytes(t))
     }
 
     /// Bytes of the transmission records in the file (0 without).
@@ -179,7 +179,7 @@ impl Level {
     pub fn surface_bytes(&self) -> u64 {
         match &self.surface {
             Surface::Clustered { texels, table } => (texels.len() * size_of::<ClusteredTexel>()) as u64 + table.byte_size(),
-            Surface::PerTexel(table) => table.byte_size(),
+            Surface::PerTexel(table) => super::compact::per_texel_table_bytes(table),
         }
     }
 }

@@ -47,6 +47,11 @@ pub struct PrefilterArgs {
     /// FLYAWAY_SPREAD).
     #[arg(long)]
     pub no_flyaway_spread: bool,
+    /// Keep the coarse levels at level 0's precision (f16 colours, 16-bit frames and
+    /// tilts) instead of format 1.7's compact records (baker/PREFILTER_MEASUREMENTS.md,
+    /// "Compact coarse records", measures both).
+    #[arg(long)]
+    pub full_precision: bool,
 }
 
 impl PrefilterArgs {
@@ -60,7 +65,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, compact: !self.full_precision, seed, ..Default::default() })
     }
 }
 
@@ -137,7 +142,8 @@ pub fn print_report(r: &PrefilterReport) {
     }
     let tilt: Vec<String> = r.levels.iter().filter_map(|l| l.view_tilt_error.map(|(a, b)| format!("{} {:.1}->{:.1}%", l.level, 100.0 * a, 100.0 * b))).collect();
     if !tilt.is_empty() {
-        println!("  view tilt, error against what distant views see, untilted->tilted per level: {}; 12 bytes per texel, {:.1} s", tilt.join(", "), r.view_tilt_seconds);
+        let (bytes, texels) = r.levels.iter().filter(|l| l.view_tilt_error.is_some()).fold((0u64, 0u64), |(b, t), l| (b + l.view_tilt_bytes, t + l.width as u64 * l.height as u64));
+        println!("  view tilt, error against what distant views see, untilted->tilted per level: {}; {:.0} bytes per texel, {:.1} s", tilt.join(", "), bytes as f64 / texels.max(1) as f64, r.view_tilt_seconds);
     }
     let share = if r.level0_bytes > 0 { 100.0 * r.chain_bytes as f64 / r.level0_bytes as f64 } else { 0.0 };
     println!("  coarse levels {} bytes = {share:.1}% of level 0's {} bytes; {:.1} s", r.chain_bytes, r.level0_bytes, r.seconds);

@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 6;
+pub const VERSION_MINOR: u16 = 7;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -68,6 +68,11 @@ pub enum SectionKind {
     SurfaceHeaders = 17,
     /// Per level: lobes (16 bytes each).
     SurfaceLobes = 18,
+    /// Per per-texel level, instead of SURFACE_HEADERS (1.7): compact headers, 8 bytes
+    /// each, the lobe offsets implicit ([`crate::hybrid::compact`]).
+    SurfaceTexelsCompact = 19,
+    /// Per per-texel level, instead of SURFACE_LOBES (1.7): compact lobes, 12 bytes each.
+    SurfaceLobesCompact = 20,
     /// Per level: flyaway list heads (u32 per texel).
     FlyawayHeads = 32,
     /// Per level: flyaway nodes (16 bytes each).
@@ -79,27 +84,36 @@ pub enum SectionKind {
     /// Per coarse level with flyaways, optional (1.5): the spread of each node's fibres,
     /// in direction and in depth (8 bytes per node).
     FlyawaySpread = 36,
+    /// Per coarse level with flyaways, optional, instead of FLYAWAY_SPREAD (1.7): the
+    /// same records without their reserved field, 6 bytes per node.
+    FlyawaySpreadCompact = 37,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
     /// Per coarse level, optional (1.4): the view tilt per texel (12 bytes each).
     ViewTilt = 49,
+    /// Per coarse level, optional, instead of VIEW_TILT (1.7): compact view tilts, 6 bytes each.
+    ViewTiltCompact = 50,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 13] = [
+    pub const ALL: [SectionKind; 17] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
         SectionKind::SurfaceClusteredTexels,
         SectionKind::SurfaceHeaders,
         SectionKind::SurfaceLobes,
+        SectionKind::SurfaceTexelsCompact,
+        SectionKind::SurfaceLobesCompact,
         SectionKind::FlyawayHeads,
         SectionKind::FlyawayNodes,
         SectionKind::FlyawayHeaders,
         SectionKind::FlyawayLobes,
         SectionKind::FlyawaySpread,
+        SectionKind::FlyawaySpreadCompact,
         SectionKind::Transmission,
         SectionKind::ViewTilt,
+        SectionKind::ViewTiltCompact,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -124,8 +138,12 @@ impl SectionKind {
             SectionKind::FlyawayHeaders => "FLYAWAY_HEADERS",
             SectionKind::FlyawayLobes => "FLYAWAY_LOBES",
             SectionKind::FlyawaySpread => "FLYAWAY_SPREAD",
+            SectionKind::FlyawaySpreadCompact => "FLYAWAY_SPREAD_COMPACT",
             SectionKind::Transmission => "TRANSMISSION",
             SectionKind::ViewTilt => "VIEW_TILT",
+            SectionKind::SurfaceTexelsCompact => "SURFACE_TEXELS_COMPACT",
+            SectionKind::SurfaceLobesCompact => "SURFACE_LOBES_COMPACT",
+            SectionKind::ViewTiltCompact => "VIEW_TILT_COMPACT",
         }
     }
 }

@@ -16,6 +16,7 @@ use super::{HEADER_SIZE, MAGIC, MAX_SECTIONS, MODEL_FLAG_COARSE_VISIBILITY, MODE
 use crate::brdf::{BrdfReading, DiffuseLaw};
 use crate::hybrid::model::{MAX_DIM, max_levels};
 use crate::hybrid::stats::{ModelStats, model_stats};
+use crate::hybrid::compact::{self, CompactError};
 use crate::hybrid::{BakeMetadata, BrdfTable, Flyaways, HeightField, HybridModel, Level, Surface, Tile, level_dims};
 use crate::scene::Aabb;
 
@@ -193,6 +194,20 @@ impl<'a> Sections<'a> {
     }
 }
 
+impl Sections<'_> {
+    /// A level's records from its wide section or its compact one (1.7), not both.
+    fn wide_or_compact<W: Pod, C: Pod>(&self, wide: SectionKind, narrow: SectionKind, level: u32, expand: impl FnOnce(&[C]) -> Result<Vec<W>, CompactError>) -> Result<Vec<W>, FormatError> {
+        match (self.get(wide, level), self.get(narrow, level)) {
+            (Some(_), Some((index, _))) => Err(FormatError::Section { index, kind: narrow.name().into(), level, why: format!("present beside {}: a level holds one of the two", wide.name()) }),
+            (None, Some((index, _))) => {
+                let records: Vec<C> = self.array(narrow, level)?;
+                expand(&records).map_err(|e| FormatError::Section { index, kind: narrow.name().into(), level, why: format!("record {}: {}", e.record, e.why) })
+            }
+            _ => self.array(wide, level),
+        }
+    }
+}
+
 struct ModelHeader {
     width: u32,
     height: u32,
@@ -280,13 +295,20 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         let l = level as u32;
         let (width, height) = level_dims(mh.width, mh.height, level);
         let surface = if s.get(SectionKind::SurfaceClusteredTexels, l).is_some() {
+            for kind in [SectionKind::SurfaceTexelsCompact, SectionKind::SurfaceLobesCompact] {
+                if let Some((index, _)) = s.get(kind, l) {
+                    return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "compact records belong to per-texel levels, and this level is clustered".into() });
+                }
+            }
             Surface::Clustered { texels: s.array(SectionKind::SurfaceClusteredTexels, l)?, table: read_table(&s, SectionKind::SurfaceHeaders, SectionKind::SurfaceLobes, l)? }
         } else {
-            Surface::PerTexel(read_table(&s, SectionKind::SurfaceHeaders, SectionKind::SurfaceLobes, l)?)
+            let headers = s.wide_or_compact(SectionKind::SurfaceHeaders, SectionKind::SurfaceTexelsCompact, l, compact::expand_texels)?;
+            let lobes = s.wide_or_compact(SectionKind::SurfaceLobes, SectionKind::SurfaceLobesCompact, l, compact::expand_lobes)?;
+            Surface::PerTexel(BrdfTable { headers, lobes })
         };
         let flyaways = match s.get(SectionKind::FlyawayHeads, l) {
             None => {
-                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread] {
+                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact] {
                     if let Some((index, _)) = s.get(kind, l) {
                         return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "present without FLYAWAY_HEADS".into() });
                     }
@@ -297,9 +319,9 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
                 heads: s.array(SectionKind::FlyawayHeads, l)?,
                 nodes: s.array(SectionKind::FlyawayNodes, l)?,
                 table: read_table(&s, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, l)?,
-                spreads: match s.get(SectionKind::FlyawaySpread, l) {
-                    Some(_) => Some(s.array(SectionKind::FlyawaySpread, l)?),
-                    None => None,
+                spreads: match (s.get(SectionKind::FlyawaySpread, l), s.get(SectionKind::FlyawaySpreadCompact, l)) {
+                    (None, None) => None,
+                    _ => Some(s.wide_or_compact(SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, l, |c| Ok(compact::expand_spreads(c)))?),
                 },
             }),
         };
@@ -307,9 +329,9 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
             Some(_) => Some(s.array(SectionKind::Transmission, l)?),
             None => None,
         };
-        let view_tilt = match s.get(SectionKind::ViewTilt, l) {
-            Some(_) => Some(s.array(SectionKind::ViewTilt, l)?),
-            None => None,
+        let view_tilt = match (s.get(SectionKind::ViewTilt, l), s.get(SectionKind::ViewTiltCompact, l)) {
+            (None, None) => None,
+            _ => Some(s.wide_or_compact(SectionKind::ViewTilt, SectionKind::ViewTiltCompact, l, |c| Ok(compact::expand_view_tilts(c)))?),
         };
         levels.push(Level { width, height, surface, flyaways, transmission, view_tilt });
     }

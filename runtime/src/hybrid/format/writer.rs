@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::error::{FileError, FormatError};
 use super::{HEADER_SIZE, MAGIC, MODEL_FLAG_COARSE_VISIBILITY, MODEL_FLAG_DIFFUSE_LS, MODEL_FLAG_SHADOWING, MODEL_FLAG_VOLUMETRIC, MODEL_SECTION_SIZE, SECTION_ALIGN, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind, VERSION_MAJOR, VERSION_MINOR};
-use crate::hybrid::{HybridModel, Surface};
+use crate::hybrid::{HybridModel, Surface, compact};
 
 /// The MODEL section (64 bytes).
 fn model_section(m: &HybridModel) -> Vec<u8> {
@@ -59,9 +59,16 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
                 out.push((SectionKind::SurfaceHeaders, 0, level, bytes(bytemuck::cast_slice(&table.headers))));
                 out.push((SectionKind::SurfaceLobes, 0, level, bytes(bytemuck::cast_slice(&table.lobes))));
             }
+            // Compact records where every one holds its wide record exactly (1.7).
             Surface::PerTexel(table) => {
-                out.push((SectionKind::SurfaceHeaders, 0, level, bytes(bytemuck::cast_slice(&table.headers))));
-                out.push((SectionKind::SurfaceLobes, 0, level, bytes(bytemuck::cast_slice(&table.lobes))));
+                match compact::compact_texels(table) {
+                    Some(t) => out.push((SectionKind::SurfaceTexelsCompact, 0, level, bytes(bytemuck::cast_slice(&t)))),
+                    None => out.push((SectionKind::SurfaceHeaders, 0, level, bytes(bytemuck::cast_slice(&table.headers)))),
+                }
+                match compact::compact_lobes(&table.lobes) {
+                    Some(l) => out.push((SectionKind::SurfaceLobesCompact, 0, level, bytes(bytemuck::cast_slice(&l)))),
+                    None => out.push((SectionKind::SurfaceLobes, 0, level, bytes(bytemuck::cast_slice(&table.lobes)))),
+                }
             }
         }
         if let Some(f) = &l.flyaways {
@@ -71,7 +78,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
             out.push((SectionKind::FlyawayLobes, 0, level, bytes(bytemuck::cast_slice(&f.table.lobes))));
             // Optional: a 1.4 reader skips it and shades each node with its one axis.
             if let Some(spreads) = &f.spreads {
-                out.push((SectionKind::FlyawaySpread, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(spreads))));
+                match compact::compact_spreads(spreads) {
+                    Some(c) => out.push((SectionKind::FlyawaySpreadCompact, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(&c)))),
+                    None => out.push((SectionKind::FlyawaySpread, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(spreads)))),
+                }
             }
         }
         // Optional: a 1.2 reader skips it and renders the reflection alone.
@@ -79,7 +89,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
             out.push((SectionKind::Transmission, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
         }
         if let Some(t) = &l.view_tilt {
-            out.push((SectionKind::ViewTilt, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
+            match compact::compact_view_tilts(t) {
+                Some(c) => out.push((SectionKind::ViewTiltCompact, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(&c)))),
+                None => out.push((SectionKind::ViewTilt, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t)))),
+            }
         }
     }
     out
