@@ -52,6 +52,19 @@ fn compact_sample() -> HybridModel {
     m
 }
 
+/// The file of `m` with its compact flyaway nodes written as wide ones (1.6's records,
+/// with their links), as an older writer would store them.
+fn wide_node_bytes(m: &HybridModel) -> Vec<u8> {
+    let mut parts = Parts::of(&format::to_bytes(m).unwrap());
+    for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawayNodesCompact as u32) {
+        e.kind = SectionKind::FlyawayNodes as u32;
+        *data = bytemuck::cast_slice(&m.levels[e.level as usize].flyaways.as_ref().unwrap().nodes).to_vec();
+    }
+    let bytes = parts.assemble();
+    assert_eq!(format::read(&bytes).unwrap(), *m, "wide nodes read as the compact ones");
+    bytes
+}
+
 fn sample_bytes() -> Vec<u8> {
     format::to_bytes(&sample()).unwrap()
 }
@@ -282,11 +295,16 @@ fn compact_corruption_catalogue() {
         ("one texel short", |p| { let t = p.find(SectionKind::SurfaceTexelsCompact, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(_))),
         ("not whole lobes", |p| p.find(SectionKind::SurfaceLobesCompact, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "SURFACE_LOBES_COMPACT")),
         ("NaN β", |p| p.find(SectionKind::SurfaceLobesCompact, 1)[8..10].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::LobeParam { field: "beta", level: 1, .. }))),
-        ("a tilt past 8", |p| p.find(SectionKind::ViewTiltCompact, 1)[3] = 0x7f, |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "b11", level: 1, .. }))),
+        ("a tilt past 8", |p| { let t = p.find(SectionKind::ViewTiltCompact, 1); t[0..4].copy_from_slice(&[0x0f, 0, 0, 0x7e]) }, |e| matches!(e, FormatError::Invalid(ModelError::ViewTiltParam { field: "b11", level: 1, .. }))),
+        ("a tilt code past its range", |p| { let t = p.find(SectionKind::ViewTiltCompact, 2); t[6..12].copy_from_slice(&[0x00, 0x04, 0, 0, 0, 0]) }, |e| matches!(e, FormatError::Section { kind, level: 2, why, .. } if kind == "VIEW_TILT_COMPACT" && why.contains("record 1"))),
         ("wide and compact headers together", |p| {
             let (e, data) = p.sections.iter().find(|(e, _)| e.kind == SectionKind::SurfaceHeaders as u32 && e.level == 0).cloned().unwrap();
             p.sections.push((SectionEntry { level: 1, ..e }, data));
         }, |e| matches!(e, FormatError::Section { kind, level: 1, why, .. } if kind == "SURFACE_TEXELS_COMPACT" && why.contains("SURFACE_HEADERS"))),
+        ("a node's axis off the grid", |p| { let n = p.find(SectionKind::FlyawayNodesCompact, 1); n[3] |= 0xf0; n[4] |= 0x7f }, |e| matches!(e, FormatError::Section { kind, level: 1, why, .. } if kind == "FLYAWAY_NODES_COMPACT" && why.contains("record 0") && why.contains("2047"))),
+        ("a node below the slab", |p| p.find(SectionKind::FlyawayNodesCompact, 1)[0..2].copy_from_slice(&0x0fffu16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, .. } | ModelError::FlyawayOrder { level: 1, .. }))),
+        ("a list head past the nodes", |p| { let h = p.find(SectionKind::FlyawayHeads, 1); let last = h.chunks_exact(4).rposition(|c| c != [0xff; 4]).unwrap(); h[4 * last..4 * last + 4].copy_from_slice(&1000u32.to_le_bytes()) }, |e| matches!(e, FormatError::Section { kind, level: 1, why, .. } if kind == "FLYAWAY_NODES_COMPACT" && why.contains("1000"))),
+        ("a list head past its node 0", |p| { let h = p.find(SectionKind::FlyawayHeads, 1); let first = h.chunks_exact(4).position(|c| c != [0xff; 4]).unwrap(); h[4 * first..4 * first + 4].copy_from_slice(&1u32.to_le_bytes()) }, |e| matches!(e, FormatError::Invalid(ModelError::FlyawayUnreached { level: 1, node: 0 }))),
         ("compact records on the clustered level", |p| p.entry(SectionKind::SurfaceLobesCompact, 1).level = 0, |e| matches!(e, FormatError::Section { level: 0, why, .. } if why.contains("clustered"))),
     ];
     run_catalogue(&format::to_bytes(&compact_sample()).unwrap(), cases);
@@ -483,7 +501,8 @@ fn semantic_corruption_catalogue() {
         ("META NaN fit error", |p| p.find(SectionKind::Meta, 0)[48..52].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Meta(_)))),
         ("META note not UTF-8", |p| { let m = p.find(SectionKind::Meta, 0); let n = m.len(); m[n - 1] = 0xff }, |e| matches!(e, FormatError::Section { kind, .. } if kind == "META")),
     ];
-    run_catalogue(&sample_bytes(), cases);
+    // The linked lists' damage needs wide nodes (1.7 writes the sample's compactly).
+    run_catalogue(&wide_node_bytes(&sample()), cases);
     // The sample's level-1 flyaways: column (1, 1) = texel 1·6 + 1 = 7 holds nodes 0 → 1.
     let m = sample();
     let f = m.levels[1].flyaways.as_ref().unwrap();

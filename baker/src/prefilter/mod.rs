@@ -296,10 +296,11 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let fit_error = errors.iter().sum::<f64>() / n;
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
-        let flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread).map_err(PrefilterError::Output)? } else { None };
+        let mut flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread).map_err(PrefilterError::Output)? } else { None };
         let transmission_fit_error = bsdf.then(|| trans_error / n);
         if opts.compact {
             compact::quantize_table(&mut table);
+            flyaways.iter_mut().for_each(compact::quantize_flyaway_nodes);
         }
         let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None };
         let t_level = Instant::now();

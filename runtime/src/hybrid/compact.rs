@@ -6,8 +6,9 @@
 //! |---------------------|-------|--------------------|----------------------------------------------|
 //! | [`CompactTexel`]    | 8     | `BrdfHeader` 16    | k_d (RGB9E5), a (f16), η (12 bits), lobe count (3 bits); the first lobe is implicit (running sum) |
 //! | [`CompactLobe`]     | 12    | `PackedLobe` 16    | n (octahedral 2×11 bits), t (angle, 10 bits), k (RGB9E5), β, γ (f16) |
-//! | [`CompactViewTilt`] | 6     | `PackedViewTilt` 12 | B and c, six 8-bit floats (E4M3)            |
+//! | [`CompactViewTilt`] | 6     | `PackedViewTilt` 12 | B: 4 × 7-bit integers with one exponent; c: 2 × 6-bit with one |
 //! | [`CompactAxisSpread`] | 6   | `PackedAxisSpread` 8 | the same fields without the reserved one (always exact) |
+//! | [`CompactFlyawayNode`] | 8  | `FlyawayNode` 16   | depth (12 bits), α (unorm16), the fibre axis (octahedral 2×11 bits), BRDF index (14 bits); the link implicit (lists stored column by column) |
 //!
 //! The encoding is a property of the file, not of the model: the writer stores a
 //! level's records compactly exactly when every one of them is representable, and the
@@ -20,7 +21,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::flyaway::PackedAxisSpread;
+use super::flyaway::{FlyawayNode, Flyaways, NO_NODE, PackedAxisSpread};
 use super::lobe::{BrdfHeader, BrdfTable, PackedLobe, PackedViewTilt};
 use super::packing::{f16_bits, f16_value, octahedral_decode, tangent_angle_encode};
 use crate::brdf::MAX_LOBES;
@@ -50,7 +51,9 @@ pub struct CompactLobe {
     pub beta_gamma: u32,
 }
 
-/// A view tilt: b00, b01, b10, b11, c0, c1 as E4M3 bytes ([`e4m3_decode`]). 6 bytes.
+/// A view tilt, 48 bits little endian: bits 0–3 e_B, 4–31 b00, b01, b10, b11 as 7-bit
+/// two's-complement q (b = q·2^(e_B − 12)), 32–35 e_c, 36–47 c0, c1 as 6-bit q
+/// (c = q·2^(e_c − 11)); the codes −64 and −32 are invalid. 6 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct CompactViewTilt {
@@ -65,7 +68,19 @@ pub struct CompactAxisSpread {
     pub v: [u8; 6],
 }
 
+/// A flyaway node without its link, 64 bits little endian (two u32): bits 0–11 depth,
+/// 12–27 α (unorm16 as stored), 28–38 and 39–49 the fibre axis's octahedral (u, v) as
+/// q + 1023 (as a lobe's normal; 2047 is invalid), 50–63 the BRDF index. A list is the
+/// nodes from its head up to the next non-empty column's head (the last: to the end),
+/// so heads must rise in texel order, the first at 0. 8 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct CompactFlyawayNode {
+    pub w: [u32; 2],
+}
+
 const _: () = assert!(core::mem::size_of::<CompactAxisSpread>() == 6);
+const _: () = assert!(core::mem::size_of::<CompactFlyawayNode>() == 8);
 const _: () = assert!(core::mem::size_of::<CompactTexel>() == 8);
 const _: () = assert!(core::mem::size_of::<CompactLobe>() == 12);
 const _: () = assert!(core::mem::size_of::<CompactViewTilt>() == 6);
@@ -112,39 +127,85 @@ fn rgb9e5_snap(bits: [u16; 3]) -> [u16; 3] {
     rgb9e5_decode(rgb9e5_encode(bits.map(f16_value))).map(f16_bits)
 }
 
-/// E4M3, an 8-bit float: bit 7 the sign, bits 3–6 the exponent e, bits 0–2 the mantissa m;
-/// |v| = (1 + m/8)·2^(e − 11) for e ≥ 1, m·2⁻¹³ for e = 0. Relative error ≤ 1/16 from
-/// 2⁻¹⁰ to 8 (codes past |v| = 8 decode, and the model's |v| ≤ 8 rejects them). Every
-/// value is an f16 exactly.
-pub fn e4m3_decode(code: u8) -> f32 {
-    let (e, m) = ((code >> 3) & 15, code & 7);
-    let mag = if e == 0 { m as f32 * exp2i(-13) } else { (1.0 + m as f32 / 8.0) * exp2i(e as i32 - 11) };
-    if code & 0x80 != 0 { -mag } else { mag }
+/// A group of values sharing one exponent: q·2^(e − bias), e ∈ 0..=15 (4 bits), each q
+/// a signed `bits`-bit integer in ±(2^(bits−1) − 1). The B group is 4 × 7 bits (bias 12),
+/// the c group 2 × 6 bits (bias 11); every value is an f16 exactly.
+#[derive(Clone, Copy)]
+struct SharedExponent {
+    bits: u32,
+    bias: i32,
 }
 
-/// The nearest E4M3 code of `v` with |v| ≤ 8 (clamped; NaN → 0).
-pub fn e4m3_encode(v: f32) -> u8 {
-    if v.is_nan() {
-        return 0;
+const TILT_B: SharedExponent = SharedExponent { bits: 7, bias: 12 };
+const TILT_C: SharedExponent = SharedExponent { bits: 6, bias: 11 };
+
+impl SharedExponent {
+    fn max_q(self) -> i32 {
+        (1 << (self.bits - 1)) - 1
     }
-    let mag = v.abs().min(8.0);
-    // Codes 0..=112 (8 = e 14, m 0) increase with their value: the nearest by bisection.
-    let (mut lo, mut hi) = (0u8, 112u8);
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if e4m3_decode(mid) <= mag {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
+
+    fn decode(self, e: u32, q: i32) -> f32 {
+        q as f32 * exp2i(e as i32 - self.bias)
     }
-    let code = if mag - e4m3_decode(lo) <= e4m3_decode(hi) - mag { lo } else { hi };
-    if v.is_sign_negative() { code | 0x80 } else { code }
+
+    /// The smallest exponent whose integers hold the largest |v| (non-finite → 0),
+    /// and the rounded integers. Error ≤ 1/(2^(bits−1) − 1) of the largest |v| (≤ 8),
+    /// plus half the finest step, 2^(−bias − 1).
+    fn encode<const N: usize>(self, v: [f32; N]) -> (u32, [i32; N]) {
+        let v = v.map(|x| if x.is_finite() { x.clamp(-8.0, 8.0) } else { 0.0 });
+        let max = v.iter().fold(0f32, |a, x| a.max(x.abs()));
+        let m = self.max_q() as f32;
+        let e = (0..16u32).find(|&e| (max / exp2i(e as i32 - self.bias)).round() <= m).unwrap_or(15);
+        let scale = exp2i(e as i32 - self.bias);
+        (e, v.map(|x| (x / scale).round().clamp(-m, m) as i32))
+    }
+
+    /// The two's-complement field of q.
+    fn field(self, q: i32) -> u64 {
+        (q as u32 & ((1 << self.bits) - 1)) as u64
+    }
+
+    /// q of a field; None for the one code past the range (−2^(bits−1)).
+    fn q(self, field: u64) -> Option<i32> {
+        let shift = 32 - self.bits;
+        let q = ((field as u32) << shift) as i32 >> shift;
+        (q >= -self.max_q()).then_some(q)
+    }
 }
 
-fn e4m3_exact(bits: u16) -> Option<u8> {
-    let code = e4m3_encode(f16_value(bits));
-    (f16_bits(e4m3_decode(code)) == bits).then_some(code)
+/// A view tilt's six values snapped to the compact grid: (e_B, q_b), (e_c, q_c).
+fn tilt_encode(b: [f32; 4], c: [f32; 2]) -> CompactViewTilt {
+    let ((eb, qb), (ec, qc)) = (TILT_B.encode(b), TILT_C.encode(c));
+    let mut w = eb as u64 | (ec as u64) << 32;
+    for (k, q) in qb.iter().enumerate() {
+        w |= TILT_B.field(*q) << (4 + 7 * k);
+    }
+    for (k, q) in qc.iter().enumerate() {
+        w |= TILT_C.field(*q) << (36 + 6 * k);
+    }
+    let bytes = w.to_le_bytes();
+    CompactViewTilt { v: [bytes[0], bytes[1], bytes[2], bytes[3], bytes[4], bytes[5]] }
+}
+
+/// b and c of a compact tilt; None where a field holds the code past its range.
+fn tilt_decode(t: &CompactViewTilt) -> Option<([f32; 4], [f32; 2])> {
+    let mut bytes = [0u8; 8];
+    bytes[..6].copy_from_slice(&t.v);
+    let w = u64::from_le_bytes(bytes);
+    let (eb, ec) = ((w & 15) as u32, ((w >> 32) & 15) as u32);
+    let mut b = [0f32; 4];
+    for (k, v) in b.iter_mut().enumerate() {
+        *v = TILT_B.decode(eb, TILT_B.q((w >> (4 + 7 * k)) & 127)?);
+    }
+    let mut c = [0f32; 2];
+    for (k, v) in c.iter_mut().enumerate() {
+        *v = TILT_C.decode(ec, TILT_C.q((w >> (36 + 6 * k)) & 63)?);
+    }
+    Some((b, c))
+}
+
+fn wide_tilt(b: [f32; 4], c: [f32; 2]) -> PackedViewTilt {
+    PackedViewTilt { b: b.map(f16_bits), c: c.map(f16_bits) }
 }
 
 /// η = 1 + 3·q/4095 for the 12-bit q.
@@ -214,11 +275,9 @@ pub fn compact_view_tilts(tilts: &[PackedViewTilt]) -> Option<Vec<CompactViewTil
     tilts
         .iter()
         .map(|t| {
-            let mut v = [0u8; 6];
-            for (code, &bits) in v.iter_mut().zip(t.b.iter().chain(&t.c)) {
-                *code = e4m3_exact(bits)?;
-            }
-            Some(CompactViewTilt { v })
+            let c = tilt_encode(t.b.map(f16_value), t.c.map(f16_value));
+            let (b, cc) = tilt_decode(&c)?;
+            (wide_tilt(b, cc) == *t).then_some(c)
         })
         .collect()
 }
@@ -239,11 +298,86 @@ pub fn expand_spreads(spreads: &[CompactAxisSpread]) -> Vec<PackedAxisSpread> {
     spreads.iter().map(|c| PackedAxisSpread { roll: u16::from_le_bytes([c.v[0], c.v[1]]), lambda: [c.v[2], c.v[3]], slab: [c.v[4], c.v[5]], reserved: 0 }).collect()
 }
 
+/// A level's nodes as compact ones, if every list is stored column by column in texel
+/// order (as [`Flyaways::from_columns`] builds them) and every field fits: depth < 4096,
+/// BRDF index < 16384, the axis on the 11-bit octahedral grid.
+pub fn compact_flyaway_nodes(f: &Flyaways) -> Option<Vec<CompactFlyawayNode>> {
+    let mut expected = 0usize;
+    for &head in f.heads.iter().filter(|&&h| h != NO_NODE) {
+        if head as usize != expected {
+            return None;
+        }
+        let mut k = expected;
+        loop {
+            let next = f.nodes.get(k)?.next;
+            k += 1;
+            if next == NO_NODE {
+                break;
+            }
+            if next as usize != k {
+                return None;
+            }
+        }
+        expected = k;
+    }
+    if expected != f.nodes.len() {
+        return None;
+    }
+    f.nodes
+        .iter()
+        .map(|n| {
+            let [u, v] = n.tangent.map(oct11_of);
+            if n.depth >= 4096 || n.param >= 16384 || n.tangent != [oct11_code(u), oct11_code(v)] {
+                return None;
+            }
+            let w = n.depth as u64 | (n.alpha as u64) << 12 | ((u + 1023) as u64) << 28 | ((v + 1023) as u64) << 39 | (n.param as u64) << 50;
+            Some(CompactFlyawayNode { w: [w as u32, (w >> 32) as u32] })
+        })
+        .collect()
+}
+
+/// The wide nodes of compact ones, their links rebuilt from the level's list heads.
+pub fn expand_flyaway_nodes(heads: &[u32], nodes: &[CompactFlyawayNode]) -> Result<Vec<FlyawayNode>, CompactError> {
+    let mut out: Vec<FlyawayNode> = Vec::with_capacity(nodes.len());
+    for (record, c) in nodes.iter().enumerate() {
+        let w = c.w[0] as u64 | (c.w[1] as u64) << 32;
+        let (u, v) = (((w >> 28) & 2047) as i32, ((w >> 39) & 2047) as i32);
+        if u == 2047 || v == 2047 {
+            return Err(CompactError { record, why: "octahedral coordinate 2047 is outside the grid (0..=2046)".into() });
+        }
+        out.push(FlyawayNode { next: NO_NODE, depth: (w & 4095) as u16, alpha: ((w >> 12) & 0xffff) as u16, tangent: [oct11_code(u - 1023), oct11_code(v - 1023)], param: (w >> 50) as u32 });
+    }
+    let starts: Vec<(usize, u32)> = heads.iter().copied().enumerate().filter(|&(_, h)| h != NO_NODE).collect();
+    for (k, &(texel, head)) in starts.iter().enumerate() {
+        let end = starts.get(k + 1).map_or(nodes.len() as u64, |&(_, h)| h as u64);
+        let expected = if k == 0 { 0 } else { starts[k - 1].1 as u64 + 1 };
+        if (head as u64) < expected || head as u64 >= end || end > nodes.len() as u64 {
+            let why = if k == 0 && head != 0 { format!("texel {texel}'s list starts at node {head}; the first list must start at node 0") } else { format!("texel {texel}'s list head {head}: heads must rise in texel order, within the {} nodes", nodes.len()) };
+            return Err(CompactError { record: head as usize, why });
+        }
+        for node in head as usize..end as usize - 1 {
+            out[node].next = node as u32 + 1;
+        }
+    }
+    if starts.is_empty() && !nodes.is_empty() {
+        return Err(CompactError { record: 0, why: "nodes without any list head".into() });
+    }
+    Ok(out)
+}
+
+/// Snaps a level's fibre axes to the 11-bit octahedral grid (≤ 3·10⁻³ rad), so that
+/// [`compact_flyaway_nodes`] holds lists built by [`Flyaways::from_columns`].
+pub fn quantize_flyaway_nodes(f: &mut Flyaways) {
+    for n in &mut f.nodes {
+        n.tangent = n.tangent.map(|c| oct11_code(oct11_of(c)));
+    }
+}
+
 /// What a compact record holds that no wide record can: where it is and why.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CompactError {
     pub record: usize,
-    pub why: &'static str,
+    pub why: String,
 }
 
 /// The wide headers of compact texels (lobe offsets: the running sum of the counts).
@@ -254,13 +388,13 @@ pub fn expand_texels(texels: &[CompactTexel]) -> Result<Vec<BrdfHeader>, Compact
         .enumerate()
         .map(|(record, t)| {
             if t.eta_count & 0x8000 != 0 {
-                return Err(CompactError { record, why: "reserved bit 15 of eta_count is set" });
+                return Err(CompactError { record, why: "reserved bit 15 of eta_count is set".into() });
             }
             let count = ((t.eta_count >> 12) & 7) as u8 + 1;
             let h = BrdfHeader { kd: rgb9e5_decode(t.kd).map(f16_bits), eta: f16_bits(eta_decode(t.eta_count)), a: t.a, lobe_count: count, reserved: 0, lobe_offset: offset };
             // At most 8 lobes per texel and fewer than 2³² texels per section: a u32 holds it,
             // but a hostile length is cheaper to refuse than to reason about.
-            offset = offset.checked_add(count as u32).ok_or(CompactError { record, why: "lobe offsets overflow" })?;
+            offset = offset.checked_add(count as u32).ok_or_else(|| CompactError { record, why: "lobe offsets overflow".into() })?;
             Ok(h)
         })
         .collect()
@@ -274,7 +408,7 @@ pub fn expand_lobes(lobes: &[CompactLobe]) -> Result<Vec<PackedLobe>, CompactErr
         .map(|(record, l)| {
             let (u, v) = ((l.frame & 2047) as i32, ((l.frame >> 11) & 2047) as i32);
             if u == 2047 || v == 2047 {
-                return Err(CompactError { record, why: "octahedral coordinate 2047 is outside the grid (0..=2046)" });
+                return Err(CompactError { record, why: "octahedral coordinate 2047 is outside the grid (0..=2046)".into() });
             }
             let angle = ((l.frame >> 22) as u16) * 64;
             Ok(PackedLobe { normal: [oct11_code(u - 1023), oct11_code(v - 1023)], tangent_angle: angle, k: rgb9e5_decode(l.k).map(f16_bits), beta: l.beta_gamma as u16, gamma: (l.beta_gamma >> 16) as u16 })
@@ -283,12 +417,13 @@ pub fn expand_lobes(lobes: &[CompactLobe]) -> Result<Vec<PackedLobe>, CompactErr
 }
 
 /// The wide view tilts of compact ones.
-pub fn expand_view_tilts(tilts: &[CompactViewTilt]) -> Vec<PackedViewTilt> {
+pub fn expand_view_tilts(tilts: &[CompactViewTilt]) -> Result<Vec<PackedViewTilt>, CompactError> {
     tilts
         .iter()
-        .map(|t| {
-            let f = t.v.map(|c| f16_bits(e4m3_decode(c)));
-            PackedViewTilt { b: [f[0], f[1], f[2], f[3]], c: [f[4], f[5]] }
+        .enumerate()
+        .map(|(record, t)| {
+            let (b, c) = tilt_decode(t).ok_or_else(|| CompactError { record, why: "an integer field holds the code past its range (−2^(bits−1))".into() })?;
+            Ok(wide_tilt(b, c))
         })
         .collect()
 }
@@ -317,11 +452,15 @@ pub fn quantize_table(table: &mut BrdfTable) {
     table.lobes = lobes;
 }
 
-/// Snaps view tilts to E4M3 (relative error ≤ 1/16).
+/// Snaps view tilts to the compact grid: B's four values share one exponent and keep
+/// 7-bit integers (error ≤ 1/63 of the largest |b| + 2⁻¹³), c's two share one and keep
+/// 6 bits (≤ 1/31 of the largest |c| + 2⁻¹²).
 pub fn quantize_view_tilts(tilts: &mut [PackedViewTilt]) {
-    let snap = |bits: &mut u16| *bits = f16_bits(e4m3_decode(e4m3_encode(f16_value(*bits))));
     for t in tilts {
-        t.b.iter_mut().chain(t.c.iter_mut()).for_each(snap);
+        let compact = tilt_encode(t.b.map(f16_value), t.c.map(f16_value));
+        if let Some((b, c)) = tilt_decode(&compact) {
+            *t = wide_tilt(b, c);
+        }
     }
 }
 
@@ -346,7 +485,7 @@ mod tests {
     use crate::brdf::ClothLobe;
 
     #[test]
-    fn every_rgb9e5_and_e4m3_value_is_an_f16_and_encodes_back_to_itself() {
+    fn every_rgb9e5_value_is_an_f16_and_encodes_back_to_itself() {
         for e in 0..32u32 {
             for m in [0u32, 1, 2, 255, 256, 511] {
                 let code = m | (m / 2) << 9 | (511 - m) << 18 | e << 27;
@@ -355,35 +494,41 @@ mod tests {
                 assert_eq!(rgb9e5_decode(rgb9e5_exact(v.map(f16_bits)).unwrap()), v);
             }
         }
-        for code in 0..=255u8 {
-            let v = e4m3_decode(code);
-            assert_eq!(f16_value(f16_bits(v)), v, "code {code}");
-            if v.abs() <= 8.0 {
-                assert_eq!(e4m3_decode(e4m3_encode(v)), v, "code {code}");
-            }
-        }
     }
 
     #[test]
     fn snapping_errors_are_within_the_stated_bounds() {
-        let mut worst = (0f32, 0f32);
+        let (mut rgb, mut tb, mut tc) = (0f32, 0f32, 0f32);
         for k in 0..20_000 {
             let x = (k as f32 * 0.618_034).fract();
             let v = [3.0 * x, 0.7 * (1.0 - x), 0.05 + x * x];
             let back = rgb9e5_decode(rgb9e5_encode(v));
             let max = v.iter().fold(0f32, |a, &b| a.max(b));
-            worst.0 = worst.0.max(v.iter().zip(back).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max) / max);
-            let t = (x - 0.5) * 16.0 * x.powi(6);
-            if t.abs() > 1.0 / 1024.0 {
-                worst.1 = worst.1.max((e4m3_decode(e4m3_encode(t)) - t).abs() / t.abs());
-            }
+            rgb = rgb.max(v.iter().zip(back).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max) / max);
+            let s = 8.0 * x.powi(1 + k % 9);
+            let b = [s, -0.3 * s, 0.01 * s, -s * x];
+            let c = [0.9 * s - 0.1, x - 0.5];
+            let mut t = [wide_tilt(b, c)];
+            let orig = t[0];
+            quantize_view_tilts(&mut t);
+            // Error over the bound max/(2^(bits−1) − 1) + half the finest step.
+            let err = |a: &[u16], q: &[u16], g: SharedExponent| {
+                let max = a.iter().fold(0f32, |m, &v| m.max(f16_value(v).abs()));
+                let bound = max / g.max_q() as f32 + 0.5 * exp2i(-g.bias);
+                a.iter().zip(q).map(|(&a, &q)| (f16_value(a) - f16_value(q)).abs()).fold(0f32, f32::max) / bound
+            };
+            tb = tb.max(err(&orig.b, &t[0].b, TILT_B));
+            tc = tc.max(err(&orig.c, &t[0].c, TILT_C));
+            assert_eq!(compact_view_tilts(&t).map(|c| expand_view_tilts(&c).unwrap()), Some(t.to_vec()));
         }
-        assert!(worst.0 <= 1.0 / 512.0 + 1e-6, "RGB9E5 error {} of the largest channel", worst.0);
-        assert!(worst.1 <= 1.0 / 16.0 + 1e-6, "E4M3 relative error {}", worst.1);
-        assert_eq!(e4m3_encode(100.0), e4m3_encode(8.0));
-        assert_eq!(e4m3_decode(e4m3_encode(f32::NAN)), 0.0);
+        assert!(rgb <= 1.0 / 512.0 + 1e-6, "RGB9E5 error {rgb} of the largest channel");
+        assert!(tb <= 1.0 + 1e-4 && tc <= 1.0 + 1e-4, "tilt errors {tb} (B) and {tc} (c) of their bounds");
         assert_eq!(rgb9e5_encode([f32::NAN, -1.0, f32::INFINITY]), 0);
         assert_eq!(rgb9e5_decode(rgb9e5_encode([1e9, 0.0, 0.0]))[0], RGB9E5_MAX);
+        let mut nan = [wide_tilt([f32::NAN, 100.0, 0.0, -0.0], [f32::INFINITY, 0.5])];
+        quantize_view_tilts(&mut nan);
+        assert_eq!(nan[0].decode().b, [0.0, 8.0, 0.0, 0.0]);
+        assert_eq!(nan[0].decode().c, [0.0, 0.5]);
     }
 
     fn table() -> BrdfTable {
@@ -434,16 +579,46 @@ mod tests {
     }
 
     #[test]
+    fn snapped_flyaway_lists_are_compact_and_their_links_come_back() {
+        use crate::hybrid::FlyawayInput;
+        let mut table = BrdfTable::new();
+        table.push(&crate::brdf::ClothParams::new(Vec3::splat(0.1), 1.5, 0.0, &[ClothLobe { k: Vec3::ONE, beta: 0.2, gamma: 0.0 }]));
+        let column = |i: u32, j: u32| (0..(i * 3 + j) % 4).map(|k| FlyawayInput { depth: (k * 3 + i) as u16, alpha: 0.1 + 0.2 * k as f32, tangent: Vec3::new(0.3 + i as f32, 0.7, j as f32 - 0.5), param: 0 }).collect();
+        let wide = Flyaways::from_columns(5, 3, table, column).unwrap();
+        assert!(compact_flyaway_nodes(&wide).is_none(), "16-bit axes are off the grid");
+        let mut f = wide.clone();
+        quantize_flyaway_nodes(&mut f);
+        for (a, b) in wide.nodes.iter().zip(&f.nodes) {
+            assert!(a.tangent().angle_between(b.tangent()) < 3e-3);
+        }
+        let c = compact_flyaway_nodes(&f).expect("snapped lists are compact");
+        assert_eq!(expand_flyaway_nodes(&f.heads, &c).unwrap(), f.nodes);
+        // Lists out of texel order are not compact; heads that do not rise are refused.
+        let mut swapped = f.clone();
+        let (a, b) = (swapped.heads.iter().position(|&h| h != NO_NODE).unwrap(), swapped.heads.iter().rposition(|&h| h != NO_NODE).unwrap());
+        swapped.heads.swap(a, b);
+        assert!(compact_flyaway_nodes(&swapped).is_none());
+        assert!(expand_flyaway_nodes(&swapped.heads, &c).is_err());
+        let mut past = f.heads.clone();
+        *past.iter_mut().rev().find(|h| **h != NO_NODE).unwrap() = c.len() as u32;
+        assert!(expand_flyaway_nodes(&past, &c).is_err());
+        assert!(expand_flyaway_nodes(&vec![NO_NODE; 15], &c).is_err());
+    }
+
+    #[test]
     fn quantized_view_tilts_are_compact_and_malformed_compact_records_are_named() {
         let mut tilts: Vec<PackedViewTilt> = (0..40).map(|k| PackedViewTilt::new(&crate::brdf::visible_normal::ViewTilt { b: [0.011 * k as f32, -0.04, 0.3 / (1 + k) as f32, -7.9], c: [1.7, -0.002 * k as f32] })).collect();
         assert!(compact_view_tilts(&tilts).is_none());
         quantize_view_tilts(&mut tilts);
         let c = compact_view_tilts(&tilts).expect("quantized tilts are compact");
-        assert_eq!(expand_view_tilts(&c), tilts);
+        assert_eq!(expand_view_tilts(&c).unwrap(), tilts);
         assert_eq!(view_tilt_bytes(&tilts), 6 * 40);
         let bad = CompactLobe { frame: 2047, ..Default::default() };
         assert_eq!(expand_lobes(&[CompactLobe::default(), bad]).unwrap_err().record, 1);
         let bad = CompactTexel { eta_count: 0x8000, ..Default::default() };
         assert_eq!(expand_texels(&[bad]).unwrap_err().record, 0);
+        // q = −64 in b00's field (bits 4–10).
+        let bad = CompactViewTilt { v: [0x00, 0x04, 0, 0, 0, 0] };
+        assert_eq!(expand_view_tilts(&[CompactViewTilt::default(), bad]).unwrap_err().record, 1);
     }
 }

@@ -246,7 +246,8 @@ impl Flyaways {
     /// Bytes these lists take in the file (heads, nodes, spread records, table).
     pub fn byte_size(&self) -> u64 {
         let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * if super::compact::compact_spreads(s).is_some() { size_of::<super::compact::CompactAxisSpread>() } else { size_of::<PackedAxisSpread>() });
-        (self.heads.len() * 4 + self.nodes.len() * size_of::<FlyawayNode>() + spreads) as u64 + self.table.byte_size()
+        let node = if super::compact::compact_flyaway_nodes(self).is_some() { size_of::<super::compact::CompactFlyawayNode>() } else { size_of::<FlyawayNode>() };
+        (self.heads.len() * 4 + self.nodes.len() * node + spreads) as u64 + self.table.byte_size()
     }
 
     /// The node at `index` and its axes (one axis, weight 1, where the level has no

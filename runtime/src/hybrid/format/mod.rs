@@ -87,6 +87,9 @@ pub enum SectionKind {
     /// Per coarse level with flyaways, optional, instead of FLYAWAY_SPREAD (1.7): the
     /// same records without their reserved field, 6 bytes per node.
     FlyawaySpreadCompact = 37,
+    /// Per level with flyaways, instead of FLYAWAY_NODES (1.7): nodes without their
+    /// link, 8 bytes each (lists stored column by column).
+    FlyawayNodesCompact = 38,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
     /// Per coarse level, optional (1.4): the view tilt per texel (12 bytes each).
@@ -96,7 +99,7 @@ pub enum SectionKind {
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 17] = [
+    pub const ALL: [SectionKind; 18] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -111,6 +114,7 @@ impl SectionKind {
         SectionKind::FlyawayLobes,
         SectionKind::FlyawaySpread,
         SectionKind::FlyawaySpreadCompact,
+        SectionKind::FlyawayNodesCompact,
         SectionKind::Transmission,
         SectionKind::ViewTilt,
         SectionKind::ViewTiltCompact,
@@ -139,6 +143,7 @@ impl SectionKind {
             SectionKind::FlyawayLobes => "FLYAWAY_LOBES",
             SectionKind::FlyawaySpread => "FLYAWAY_SPREAD",
             SectionKind::FlyawaySpreadCompact => "FLYAWAY_SPREAD_COMPACT",
+            SectionKind::FlyawayNodesCompact => "FLYAWAY_NODES_COMPACT",
             SectionKind::Transmission => "TRANSMISSION",
             SectionKind::ViewTilt => "VIEW_TILT",
             SectionKind::SurfaceTexelsCompact => "SURFACE_TEXELS_COMPACT",

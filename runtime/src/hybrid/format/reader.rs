@@ -308,22 +308,23 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         };
         let flyaways = match s.get(SectionKind::FlyawayHeads, l) {
             None => {
-                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact] {
+                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact] {
                     if let Some((index, _)) = s.get(kind, l) {
                         return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "present without FLYAWAY_HEADS".into() });
                     }
                 }
                 None
             }
-            Some(_) => Some(Flyaways {
-                heads: s.array(SectionKind::FlyawayHeads, l)?,
-                nodes: s.array(SectionKind::FlyawayNodes, l)?,
-                table: read_table(&s, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, l)?,
-                spreads: match (s.get(SectionKind::FlyawaySpread, l), s.get(SectionKind::FlyawaySpreadCompact, l)) {
+            Some(_) => {
+                let heads: Vec<u32> = s.array(SectionKind::FlyawayHeads, l)?;
+                let nodes = s.wide_or_compact(SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, l, |c| compact::expand_flyaway_nodes(&heads, c))?;
+                let table = read_table(&s, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, l)?;
+                let spreads = match (s.get(SectionKind::FlyawaySpread, l), s.get(SectionKind::FlyawaySpreadCompact, l)) {
                     (None, None) => None,
                     _ => Some(s.wide_or_compact(SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, l, |c| Ok(compact::expand_spreads(c)))?),
-                },
-            }),
+                };
+                Some(Flyaways { heads, nodes, table, spreads })
+            }
         };
         let transmission = match s.get(SectionKind::Transmission, l) {
             Some(_) => Some(s.array(SectionKind::Transmission, l)?),
@@ -331,7 +332,7 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         };
         let view_tilt = match (s.get(SectionKind::ViewTilt, l), s.get(SectionKind::ViewTiltCompact, l)) {
             (None, None) => None,
-            _ => Some(s.wide_or_compact(SectionKind::ViewTilt, SectionKind::ViewTiltCompact, l, |c| Ok(compact::expand_view_tilts(c)))?),
+            _ => Some(s.wide_or_compact(SectionKind::ViewTilt, SectionKind::ViewTiltCompact, l, compact::expand_view_tilts)?),
         };
         levels.push(Level { width, height, surface, flyaways, transmission, view_tilt });
     }

@@ -73,7 +73,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
         }
         if let Some(f) = &l.flyaways {
             out.push((SectionKind::FlyawayHeads, 0, level, bytes(bytemuck::cast_slice(&f.heads))));
-            out.push((SectionKind::FlyawayNodes, 0, level, bytes(bytemuck::cast_slice(&f.nodes))));
+            match compact::compact_flyaway_nodes(f) {
+                Some(c) => out.push((SectionKind::FlyawayNodesCompact, 0, level, bytes(bytemuck::cast_slice(&c)))),
+                None => out.push((SectionKind::FlyawayNodes, 0, level, bytes(bytemuck::cast_slice(&f.nodes)))),
+            }
             out.push((SectionKind::FlyawayHeaders, 0, level, bytes(bytemuck::cast_slice(&f.table.headers))));
             out.push((SectionKind::FlyawayLobes, 0, level, bytes(bytemuck::cast_slice(&f.table.lobes))));
             // Optional: a 1.4 reader skips it and shades each node with its one axis.
