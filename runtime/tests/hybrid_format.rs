@@ -514,17 +514,20 @@ fn semantic_corruption_catalogue() {
 /// error or returns the original model (a flip in inter-section padding is harmless);
 /// never a panic. With the CRCs recomputed, semantic damage must be caught too.
 fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
-    let good = sample_bytes();
-    let model = sample();
+    // The sample (wide surfaces, compact flyaway nodes) and the compact sample (every
+    // compact record), alternately.
+    let models = [sample(), compact_sample()];
+    let files = models.each_ref().map(|m| format::to_bytes(m).unwrap());
     let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
     let (mut rejected, mut accepted) = (0, 0);
     for it in 0..iterations {
+        let (good, model) = (&files[(it % 2) as usize], &models[(it % 2) as usize]);
         let kind = rng.next_u64() % 6;
         let b = match kind {
-            k if k < format::mutate::KINDS => format::mutate::mutate(&good, k, &mut rng),
+            k if k < format::mutate::KINDS => format::mutate::mutate(good, k, &mut rng),
             // Semantic damage behind valid checksums: edit a section, re-seal.
             _ => {
-                let mut parts = Parts::of(&good);
+                let mut parts = Parts::of(good);
                 let s = (rng.next_u64() % parts.sections.len() as u64) as usize;
                 let data = &mut parts.sections[s].1;
                 if !data.is_empty() {
@@ -545,9 +548,11 @@ fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
                 // Accepted: raw damage must have been harmless (inter-section padding);
                 // a re-sealed edit may change the model but must leave it valid.
                 if kind < 4 {
-                    assert!(m == model, "iteration {it}: damaged bytes read as a different model");
+                    assert!(m == *model, "iteration {it}: damaged bytes read as a different model");
                 }
                 m.validate().unwrap_or_else(|e| panic!("iteration {it}: accepted an invalid model: {e}"));
+                // What the reader accepts, the writer writes and the reader reads back.
+                assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap(), m, "iteration {it}");
                 accepted += 1;
             }
         }

@@ -83,7 +83,8 @@ pub struct PrefilterOptions {
     pub view_tilt: bool,
     /// Snap the coarse levels to the compact grid, so that the file stores them in the
     /// compact records of format 1.7 ([`fabric_runtime::hybrid::compact`]): 8 + 12·L
-    /// bytes per texel instead of 16 + 16·L, 6 per view tilt instead of 12.
+    /// bytes per texel instead of 16 + 16·L, 6 per view tilt instead of 12, 8 per
+    /// flyaway node instead of 16.
     pub compact: bool,
     pub seed: u64,
 }
