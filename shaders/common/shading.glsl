@@ -236,56 +236,36 @@ vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap
     return axis * ((float(ka) + 0.5) / float(taps) - 0.5) + minor_axis * ((float(kb) + 0.5) / float(taps_minor) - 0.5);
 }
 
+// Most lookups of a box grid: MAX_ANISOTROPY along the major axis by the grid's G = 2.
+const uint MAX_SURFACE_TAPS = 16u;
+
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
-// coarse levels corner k % 4 of the bilinear lookup of tap k / 4 of the grid above.
-// Returns its weight.
-float surface_texel(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint k, out TexelRef r) {
+// coarse levels corner k % 4 of the bilinear lookup at tap_xy[k / 4] (where that tap's
+// own ray meets the height field; p itself for one lookup), its frames turned by the
+// level's view tilt. Returns its weight.
+float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
     if (level == 0u) {
         uvec2 ij0 = texel_at(p, 0u);
         r = texel_brdf(0u, ij0.x, ij0.y);
         return 1.0;
     }
-    uint n = taps * taps_minor;
-    vec2 offset = n <= 1u ? vec2(0.0) : tap_offset(axis, taps, minor_axis, taps_minor, k >> 2);
+    vec3 q = n <= 1u ? p : vec3(tap_xy[k >> 2], p.z);
     uvec2 ij;
-    float w = bilinear_texel(p + vec3(offset, 0.0), level, int(k & 3u), ij);
+    float w = bilinear_texel(q, level, int(k & 3u), ij);
     r = texel_brdf(level, ij.x, ij.y);
-    float v = seen_from(r, level, ij, wo);
-    return n <= 1u ? w : w * v / float(n);
-}
-
-// 1 / the sum of surface_texel's weights where a level with view tilts is read by
-// several taps (each tap weighted by its texel's visibility; 1 where no v differs from
-// 1, as straight down), else 1: the weights alone (bilinear weight times v), no texel
-// decoded. Twin: normalize_weights in
-// Scene::shade_surface.
-float surface_weight_scale(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor) {
-    GpuLevel l = model.levels[level];
-    uint n = taps * taps_minor;
-    if (level == 0u || n <= 1u || l.tilt_base == NO_NODE) {
-        return 1.0;
-    }
-    float total = 0.0;
-    bool weighted = false;
-    for (uint c = 0u; c < 4u * n; ++c) {
-        vec2 offset = tap_offset(axis, taps, minor_axis, taps_minor, c >> 2);
-        uvec2 ij;
-        float w = bilinear_texel(p + vec3(offset, 0.0), level, int(c & 3u), ij);
-        float v = view_visibility(packed_view_tilt(l.tilt_base + ij.y * l.dims.x + ij.x), wo);
-        weighted = weighted || v != 1.0;
-        total += w * v / float(n);
-    }
-    return weighted && total > 0.0 ? 1.0 / total : 1.0;
+    // The tilt's visibility v is not used: each tap's own ray already sees the footprint
+    // as a distant view does (Scene::shade_surface).
+    seen_from(r, level, ij, wo);
+    return n <= 1u ? w : w / float(n);
 }
 
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
 // light's visibility once.
-vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, bool shadowed, bool volumetric, inout uint limited) {
+vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
-    uint count = level == 0u ? 1u : 4u * taps * taps_minor;
-    float scale = surface_weight_scale(level, p, wo, axis, taps, minor_axis, taps_minor);
+    uint count = level == 0u ? 1u : 4u * n;
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
@@ -301,7 +281,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_a
                 vec3 through = vec3(0.0);
                 for (uint c = 0u; c < count; ++c) {
                     TexelRef r;
-                    float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
+                    float w = surface_texel(level, p, wo, tap_xy, n, c, r);
                     through += w * texel_transmission_response(r, e, true, wi, wo);
                 }
                 radiance += irradiance * through;
@@ -311,7 +291,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_a
         vec3 response = vec3(0.0);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
+            float w = surface_texel(level, p, wo, tap_xy, n, c, r);
             response += w * texel_response(r, e, true, wi, wo, reading, diffuse);
         }
         if (max3(response) <= 0.0) {
@@ -323,7 +303,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 axis, uint taps, vec2 minor_a
     if (HAS_ENV) {
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, axis, taps, minor_axis, taps_minor, c, r) * scale;
+            float w = surface_texel(level, p, wo, tap_xy, n, c, r);
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
         }
     }

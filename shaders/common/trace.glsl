@@ -52,11 +52,37 @@ FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint
 }
 
 // The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
-vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, inout uint shadow_limited) {
+// Where the lookup at `offset` (world x-y) of a box grid reads the surface: where a ray
+// parallel to the pixel's, started `offset` beside it, meets the height field; the point
+// `offset` beside the pixel's hit p where it misses or runs out of steps (and without
+// relief). Twin: Scene::tap_surface_point.
+vec2 tap_surface_point(vec3 o, vec3 d, vec2 offset, vec3 p, int floor_level) {
+    vec2 beside = p.xy + offset;
+    vec3 ro = o + vec3(offset, 0.0);
+    float t_top;
+    if (!RELIEF || !enter_top(ro, d, t_top)) {
+        return beside;
+    }
+    uint steps = 0u;
+    HfTrace hit = hf_trace(ro, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps, floor_level);
+    return hit.kind == HF_HIT ? (ro + d * hit.t).xy : beside;
+}
+
+vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, int floor_level, inout uint shadow_limited) {
     vec3 p = o + t * d;
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
-    return shade_blend(level, p, -d, mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, shadowed, volumetric, shadow_limited);
+    uint n = level == 0u ? 1u : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
+    vec2 tap_xy[MAX_SURFACE_TAPS];
+    for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
+        tap_xy[k] = p.xy;
+    }
+    if (n > 1u) {
+        for (uint k = 0u; k < n; ++k) {
+            tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
+        }
+    }
+    return shade_blend(level, p, -d, tap_xy, n, shadowed, volumetric, shadow_limited);
 }
 
 // One ray, shaded with the levels choose_levels gives where it meets the surface (the
@@ -153,7 +179,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         if (fly_transmittance > 0.0) {
             bool blend = mix_.weight > 0.0 && mix_.hi != mix_.lo;
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
-                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, shadow_limited);
+                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, floor_level, shadow_limited);
                 behind = !blend ? s : (k == 0u ? s * (1.0 - mix_.weight) : behind + s * mix_.weight);
             }
         }
