@@ -68,20 +68,11 @@ vec2 tap_surface_point(vec3 o, vec3 d, vec2 offset, vec3 p, int floor_level) {
     return hit.kind == HF_HIT ? (ro + d * hit.t).xy : beside;
 }
 
-vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, int floor_level, inout uint shadow_limited) {
+vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_xy[MAX_SURFACE_TAPS], inout uint shadow_limited) {
     vec3 p = o + t * d;
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
     uint n = level == 0u ? 1u : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
-    vec2 tap_xy[MAX_SURFACE_TAPS];
-    for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
-        tap_xy[k] = p.xy;
-    }
-    if (n > 1u) {
-        for (uint k = 0u; k < n; ++k) {
-            tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
-        }
-    }
     return shade_blend(level, p, -d, tap_xy, n, shadowed, volumetric, shadow_limited);
 }
 
@@ -178,8 +169,21 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         behind = vec3(0.0);
         if (fly_transmittance > 0.0) {
             bool blend = mix_.weight > 0.0 && mix_.hi != mix_.lo;
+            // The box grid's lookup points, once for both levels of a blend.
+            vec3 p = o + hit.t * d;
+            uint n = min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
+            bool coarse = mix_.lo > 0u || (mix_.weight > 0.0 && mix_.hi > 0u);
+            vec2 tap_xy[MAX_SURFACE_TAPS];
+            for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
+                tap_xy[k] = p.xy;
+            }
+            if (coarse && n > 1u) {
+                for (uint k = 0u; k < n; ++k) {
+                    tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
+                }
+            }
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
-                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, floor_level, shadow_limited);
+                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, tap_xy, shadow_limited);
                 behind = !blend ? s : (k == 0u ? s * (1.0 - mix_.weight) : behind + s * mix_.weight);
             }
         }
