@@ -6,11 +6,11 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `NODES=1` the flyaway
 //! nodes' responses at 70°.
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
-use fabric_runtime::cpu::{CpuRenderOptions, LevelChoice, render};
+use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, render};
 use fabric_runtime::hybrid::{HybridModel, format};
 use fabric_runtime::image::Image;
 use fabric_runtime::metrics::relative_rmse;
@@ -26,7 +26,8 @@ fn views(model: &HybridModel, pixels: u32, label: &str) {
         let tpp = model.width() as f32 / pixels as f32 / polar.to_radians().cos().max(0.1);
         let f = ((tpp * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
         let big = fabric_runtime::scene::Camera { width: camera.width * f, height: camera.height * f, ..camera };
-        let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, ..Default::default() };
+        let coarse_filter = if std::env::var("FINE").is_ok() { CoarseFilter::Fine } else { CoarseFilter::Box };
+        let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, coarse_filter, ..Default::default() };
         let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
         let chain_ss = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 8)).unwrap();

@@ -4,8 +4,8 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fly_box_grid};
-use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fly_box_grid};
+use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
@@ -189,11 +189,22 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (1.0, 1.0, 4, 2)), (1.5, 2, (1.0, 0.5, 4, 2))] {
         assert!(close(fly(lambda, n, FILTER_GRID), want), "λ {lambda}, N {n}: {:?}", fly(lambda, n, FILTER_GRID));
     }
-    for n in [1u32, 2, 3, 8] {
-        let step = |l: f32| fly(l + 1e-4, n, FILTER_GRID).0 - fly(l - 1e-4, n, FILTER_GRID).0;
-        let spread = |l: f32| fly(l + 1e-4, n, FILTER_GRID).1 - fly(l - 1e-4, n, FILTER_GRID).1;
-        for l in [1.0f32, 2.0, 2.5, 3.0, 4.0] {
-            assert!(step(l).abs() < 1e-3 && spread(l).abs() < 1e-3, "N {n}: a jump at λ {l}");
+    // The fine grid (`CoarseFilter::Fine`): G = 4 rays per axis through voxels a quarter
+    // of a round footprint (two levels finer), N·G along a long one as the surface's
+    // lookups (at most 8), never below level 1.
+    assert_eq!(CoarseFilter::Fine.fly_grid(), FLY_FINE_GRID);
+    assert_eq!((CoarseFilter::Box.fly_grid(), CoarseFilter::Bilinear.fly_grid()), (FILTER_GRID, 1));
+    assert_eq!(CoarseFilter::Fine.grid(), CoarseFilter::Box.grid(), "the surface's grid is the box filter's");
+    for (lambda, n, want) in [(3.5f32, 1u32, (1.5f32, 1.0f32, 4, 4)), (2.0, 1, (1.0, 1.0, 4, 4)), (1.5, 1, (1.0, 0.5, 4, 4)), (4.5, 3, (1.5, 1.0, 8, 4)), (5.0, 1, (3.0, 1.0, 4, 4))] {
+        assert!(close(fly(lambda, n, FLY_FINE_GRID), want), "fine, λ {lambda}, N {n}: {:?}", fly(lambda, n, FLY_FINE_GRID));
+    }
+    for grid in [FILTER_GRID, FLY_FINE_GRID] {
+        for n in [1u32, 2, 3, 8] {
+            let step = |l: f32| fly(l + 1e-4, n, grid).0 - fly(l - 1e-4, n, grid).0;
+            let spread = |l: f32| fly(l + 1e-4, n, grid).1 - fly(l - 1e-4, n, grid).1;
+            for l in [1.0f32, 2.0, 2.5, 3.0, 4.0] {
+                assert!(step(l).abs() < 1e-3 && spread(l).abs() < 1e-3, "G {grid}, N {n}: a jump at λ {l}");
+            }
         }
     }
 }

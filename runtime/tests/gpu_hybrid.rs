@@ -101,6 +101,14 @@ fn gpu_matches_the_cpu_twin() {
     let one = render(&synthetic, &far_synth, &lights, &bilinear.options).unwrap();
     let apart = relative_rmse(&one, &boxed).unwrap();
     assert!(apart > 1e-3, "the two coarse filters drew the same image ({apart})");
+    // The fine flyaway grid (`--coarse-filter fine`, specialization constant 8): the
+    // twins agree, and its flyaways differ from the box filter's.
+    let fine = Case { name: "synthetic far, fine flyaway grid", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Fine, ..opts.clone() } };
+    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &fine);
+    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", fine.name);
+    let finer = render(&synthetic, &far_synth, &lights, &fine.options).unwrap();
+    let apart = relative_rmse(&finer, &boxed).unwrap();
+    assert!(apart > 1e-4, "the fine flyaway grid drew the box filter's image ({apart})");
     assert_no_validation_errors(&device);
 }
 

@@ -52,7 +52,8 @@ uint grid_taps(uint n, uint grid) {
 
 // The flyaways' box grid for a footprint of `major` level-0 texels, `n` anisotropic
 // lookups: min(N, FLY_MAX_ANISOTROPY) * G rays along the major axis and G across it at
-// the level of the surface's lookups, major / min(N * G, 8), spread over the fraction
+// the level of N * G lookups, major / min(N * G, 8) (G = 2: the surface's; G = FLY_GRID,
+// the fine filter's 4: a quarter of a round footprint), spread over the fraction
 // `spread` of the footprint (1 past log2 major = 2; from 0 at 1). Twin: fly_box_grid
 // (FlyGrid).
 struct FlyGrid {
@@ -68,7 +69,7 @@ FlyGrid fly_box_grid(float major, uint n, float bias, uint grid) {
         return FlyGrid(lambda, 0.0, 1u, 1u);
     }
     uint taps = grid_taps(max(n, 1u), grid);
-    float finer = lambda - min(log2(float(grid)), 1.0) - log2(float(taps) / float(grid));
+    float finer = lambda - log2(float(grid)) - log2(float(taps) / float(grid));
     return FlyGrid(max(finer, 1.0), min(lambda - 1.0, 1.0), clamp(n, 1u, FLY_MAX_ANISOTROPY) * grid, grid);
 }
 
@@ -188,7 +189,7 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     uint taps = uint(clamp(ceil(major / max(minor, 1e-6) - 1e-3), 1.0, float(MAX_ANISOTROPY)));
     float lambda = log2(major / float(taps)) + FILTER_OFFSET + bias;
     LevelMix m;
-    FlyGrid fly = fly_box_grid(major, taps, bias, FILTER_GRID);
+    FlyGrid fly = fly_box_grid(major, taps, bias, FLY_GRID);
     linear_levels(fly.level, last, m.fly_lo, m.fly_hi, m.fly_weight);
     bool fly_grid = fly.spread > 0.0;
     m.fly_taps_a = fly_grid ? fly.taps_major : 1u;

@@ -43,9 +43,10 @@ pub struct CpuRenderFlags {
     #[arg(long)]
     pub coarse_relief: bool,
     /// How coarse levels are filtered: "box" (a 2×2 grid of lookups one level finer,
-    /// closer to the pixel's box) or "bilinear" (one lookup per anisotropic tap:
-    /// cheaper far away, runtime/GPU_MEASUREMENTS.md).
-    #[arg(long, default_value = "box", value_parser = ["box", "bilinear"])]
+    /// closer to the pixel's box), "fine" (the box, with the flyaways along a 4×4 grid
+    /// of rays two levels finer: closer still, 2–3× slower far away) or "bilinear" (one
+    /// lookup per anisotropic tap: cheaper far away, runtime/GPU_MEASUREMENTS.md).
+    #[arg(long, default_value = "box", value_parser = ["box", "fine", "bilinear"])]
     pub coarse_filter: String,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
@@ -108,7 +109,11 @@ impl CpuRenderFlags {
             max_steps: self.max_steps,
             flyaways: !self.no_flyaways,
             coarse_relief: self.coarse_relief,
-            coarse_filter: if self.coarse_filter == "bilinear" { CoarseFilter::Bilinear } else { CoarseFilter::Box },
+            coarse_filter: match self.coarse_filter.as_str() {
+                "bilinear" => CoarseFilter::Bilinear,
+                "fine" => CoarseFilter::Fine,
+                _ => CoarseFilter::Box,
+            },
             edits,
             ..Default::default()
         })
