@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `SWEEP=1` the distance sweep alone, `NODES=1` the flyaway
 //! nodes' responses at 70°.
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
@@ -47,6 +47,12 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let model = format::read_file(std::path::Path::new(&args[1])).expect("read the model");
     let pixels = args.get(2).map_or(16, |s| s.parse().unwrap());
+    if std::env::var("SWEEP").is_ok() {
+        for s in fabric_baker::prefilter::far_view::distance_sweep(&model, 32, 8).expect("the sweep") {
+            println!("sweep {:5.2} texels/px: chain {:.2}%  level 0 at 1 spp {:.2}%", s.texels_per_pixel, 100.0 * s.chain, 100.0 * s.level0);
+        }
+        return;
+    }
     if std::env::var("OPACITY_ONLY").is_ok() {
         for polar in [0.0, 45.0, 70.0] {
             opacity_by_level(&model, polar);

@@ -92,6 +92,11 @@ fn gpu_matches_the_cpu_twin() {
         let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &case);
         assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
     }
+    // Three texels per pixel from above: level 0, read through its grid of nearest
+    // texels, blended with level 1 (LevelMix::fine_taps).
+    let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &mid);
+    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", mid.name);
     // The one-lookup coarse filter (`--coarse-filter bilinear`, specialization constant
     // 7) in both twins, and a different image from the box grid's.
     let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };

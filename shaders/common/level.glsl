@@ -34,10 +34,17 @@ struct LevelMix {
     vec2 fly_axis_b;
     uint fly_taps_a;
     uint fly_taps_b;
+    // Level 0's grid where it is blended with level 1 (0 < lambda < 1): fine_taps_a x
+    // fine_taps_b nearest-texel lookups spread over fine_axis_a, fine_axis_b, each where
+    // its own parallel ray lands (1 x 1: the hit's texel alone). Twin: LevelMix::fine_*.
+    vec2 fine_axis_a;
+    vec2 fine_axis_b;
+    uint fine_taps_a;
+    uint fine_taps_b;
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u, vec2(0.0), vec2(0.0), 1u, 1u);
 }
 
 // Lookups of the box grid along a footprint's major axis: G per anisotropic lookup, at
@@ -196,6 +203,10 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.fly_taps_b = fly_grid ? fly.taps_minor : 1u;
     m.fly_axis_a = fly_grid ? axis * fly.spread : vec2(0.0);
     m.fly_axis_b = fly_grid ? minor_axis * fly.spread : vec2(0.0);
+    m.fine_axis_a = vec2(0.0);
+    m.fine_axis_b = vec2(0.0);
+    m.fine_taps_a = 1u;
+    m.fine_taps_b = 1u;
     BoxGrid g;
     if (!box_grid(major, minor, taps, lambda, bias, g)) {
         linear_levels(lambda, last, m.lo, m.hi, m.weight);
@@ -203,6 +214,15 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
         m.taps = taps;
         m.minor_axis = vec2(0.0);
         m.taps_minor = 1u;
+        // Blended with level 1, level 0 through a grid of its nearest texels, spread
+        // from nothing at lambda = 0 to the footprint at 1/2 (Scene::level_mix).
+        if (m.lo == 0u && m.weight > 0.0 && FILTER_GRID > 1u) {
+            float spread = min(2.0 * m.weight, 1.0);
+            m.fine_axis_a = axis * spread;
+            m.fine_axis_b = minor_axis * spread;
+            m.fine_taps_a = grid_taps(taps, FILTER_GRID);
+            m.fine_taps_b = FILTER_GRID;
+        }
         return m;
     }
     linear_levels(g.level, last, m.lo, m.hi, m.weight);

@@ -239,15 +239,17 @@ vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap
 // Most lookups of a box grid: MAX_ANISOTROPY along the major axis by the grid's G = 2.
 const uint MAX_SURFACE_TAPS = 16u;
 
-// Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0), or at
+// Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0; with a
+// grid, n > 1, the nearest texel where lookup k's own ray lands, weight 1/n), or at
 // coarse levels corner k % 4 of the bilinear lookup at tap_xy[k / 4] (where that tap's
 // own ray meets the height field; p itself for one lookup), its frames turned by the
 // level's view tilt. Returns its weight.
 float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
     if (level == 0u) {
-        uvec2 ij0 = texel_at(p, 0u);
+        // Level 0's grid (n lookups, each its nearest texel) or the hit's texel.
+        uvec2 ij0 = texel_at(n <= 1u ? p : vec3(tap_xy[k], p.z), 0u);
         r = texel_brdf(0u, ij0.x, ij0.y);
-        return 1.0;
+        return n <= 1u ? 1.0 : 1.0 / float(n);
     }
     vec3 q = n <= 1u ? p : vec3(tap_xy[k >> 2], p.z);
     uvec2 ij;
@@ -265,7 +267,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
     uint reading = model_reading();
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
-    uint count = level == 0u ? 1u : 4u * n;
+    uint count = level == 0u ? max(n, 1u) : 4u * n;
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;

@@ -68,11 +68,12 @@ vec2 tap_surface_point(vec3 o, vec3 d, vec2 offset, vec3 p, int floor_level) {
     return hit.kind == HF_HIT ? (ro + d * hit.t).xy : beside;
 }
 
+// At level 0, tap_xy holds level 0's grid (mix_.fine_taps_*; one lookup: the hit's texel).
 vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_xy[MAX_SURFACE_TAPS], inout uint shadow_limited) {
     vec3 p = o + t * d;
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
-    uint n = level == 0u ? 1u : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
+    uint n = level == 0u ? min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS) : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
     return shade_blend(level, p, -d, tap_xy, n, shadowed, volumetric, shadow_limited);
 }
 
@@ -182,8 +183,20 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                     tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
                 }
             }
+            // Level 0's grid where it is blended with level 1.
+            uint n0 = min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS);
+            vec2 fine_xy[MAX_SURFACE_TAPS];
+            for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
+                fine_xy[k] = p.xy;
+            }
+            if (mix_.lo == 0u && n0 > 1u) {
+                for (uint k = 0u; k < n0; ++k) {
+                    fine_xy[k] = tap_surface_point(o, d, tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k), p, floor_level);
+                }
+            }
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
-                vec3 s = shade_surface(o, d, hit.t, k == 0u ? mix_.lo : mix_.hi, mix_, tap_xy, shadow_limited);
+                uint level = k == 0u ? mix_.lo : mix_.hi;
+                vec3 s = shade_surface(o, d, hit.t, level, mix_, level == 0u ? fine_xy : tap_xy, shadow_limited);
                 behind = !blend ? s : (k == 0u ? s * (1.0 - mix_.weight) : behind + s * mix_.weight);
             }
         }

@@ -76,11 +76,17 @@ pub struct LevelMix {
     /// `fly`'s levels ((1, 1): the ray alone).
     pub fly_axes: (Vec2, Vec2),
     pub fly_taps: (u32, u32),
+    /// Level 0's grid where it is blended with level 1 (0 < λ < 1): `fine_taps.0` ×
+    /// `fine_taps.1` nearest-texel lookups spread over `fine_axes` (world x–y; the
+    /// footprint's major axis first), each where its own parallel ray lands ((1, 1): the
+    /// hit's texel alone).
+    pub fine_axes: (Vec2, Vec2),
+    pub fine_taps: (u32, u32),
 }
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1) }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1), fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
     }
 }
 
@@ -326,10 +332,21 @@ impl<'a> Scene<'a> {
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             let (lo, hi, weight) = linear_levels(lambda, last);
-            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps };
+            // Blended with level 1, level 0 is read through a grid of its nearest texels
+            // (grid_taps(N, G) × G, evenly over the footprint, spread from nothing at
+            // λ = 0 to the whole footprint at λ = ½; baker/PREFILTER_MEASUREMENTS.md,
+            // "Level 0 through a grid where it is blended"): one texel at the hit aliases
+            // a footprint of two or three texels.
+            let (fine_axes, fine_taps) = if lo == 0 && weight > 0.0 && g > 1 {
+                let spread = (2.0 * weight).min(1.0);
+                ((axis * spread, minor_axis * spread), (grid_taps(n, g), g))
+            } else {
+                ((Vec2::ZERO, Vec2::ZERO), (1, 1))
+            };
+            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes, fine_taps };
         };
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
-        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly, fly_axes, fly_taps }
+        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -503,7 +520,9 @@ impl<'a> Scene<'a> {
                 let coarse = mix.lo > 0 || (mix.weight > 0.0 && mix.hi > 0);
                 let (n, m) = (mix.taps, mix.taps_minor);
                 let points: Vec<Vec3> = if coarse && n * m > 1 { (0..n * m).map(|k| self.tap_surface_point(ray, tap_offset(mix.axis, n, mix.minor_axis, m, k), ray.at(t), floor)).collect() } else { Vec::new() };
-                let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix, &points);
+                let (f0, f1) = mix.fine_taps;
+                let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| self.tap_surface_point(ray, tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), ray.at(t), floor)).collect() } else { Vec::new() };
+                let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix, if mix.lo == 0 { &fine } else { &points });
                 if mix.weight > 0.0 && mix.hi != mix.lo {
                     let (hi, l) = self.shade_surface(ray, t, mix.hi, &mix, &points);
                     surface = surface * (1.0 - mix.weight) + hi * mix.weight;
@@ -596,7 +615,8 @@ impl<'a> Scene<'a> {
 
     /// The surface hit at ray parameter `t`, shaded with `level` (filtered as `mix`
     /// says at coarse levels; `points`: a box grid's lookups where their own rays meet
-    /// the height field, [`Scene::tap_surface_point`]); returns the radiance and the
+    /// the height field, [`Scene::tap_surface_point`]; at level 0, its grid's lookups,
+    /// empty for the hit's texel alone); returns the radiance and the
     /// step-limited shadow rays.
     fn shade_surface(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix, points: &[Vec3]) -> (Vec3, u32) {
         let wo = -ray.d;
@@ -613,7 +633,15 @@ impl<'a> Scene<'a> {
         // The edit at the hit (the same for all its texels).
         let edit = self.edited.then(|| self.edit_at(p));
         let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));
-        let radiance = if level == 0 {
+        let radiance = if level == 0 && !points.is_empty() {
+            // Level 0 through its grid: the nearest texel where each lookup's ray lands.
+            let share = 1.0 / points.len() as f32;
+            let texels: Vec<(TexelBrdf, f32)> = points.iter().map(|&q| {
+                let (i, j) = self.texel_at(q, 0);
+                (edited(l.texel_brdf(i, j)), share)
+            }).collect();
+            shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>()
+        } else if level == 0 {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
             shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)
