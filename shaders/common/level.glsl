@@ -35,8 +35,8 @@ struct LevelMix {
     uint fly_taps_a;
     uint fly_taps_b;
     // Level 0's grid where it is blended with level 1 (0 < lambda < 1): fine_taps_a x
-    // fine_taps_b nearest-texel lookups spread over fine_axis_a, fine_axis_b, each where
-    // its own parallel ray lands (1 x 1: the hit's texel alone). Twin: LevelMix::fine_*.
+    // fine_taps_b nearest-texel lookups spread over fine_axis_a, fine_axis_b beside the
+    // hit (1 x 1: the hit's texel alone). Twin: LevelMix::fine_*.
     vec2 fine_axis_a;
     vec2 fine_axis_b;
     uint fine_taps_a;

@@ -240,7 +240,7 @@ vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap
 const uint MAX_SURFACE_TAPS = 16u;
 
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0; with a
-// grid, n > 1, the nearest texel where lookup k's own ray lands, weight 1/n), or at
+// grid, n > 1, the nearest texel at lookup k beside the hit, weight 1/n), or at
 // coarse levels corner k % 4 of the bilinear lookup at tap_xy[k / 4] (where that tap's
 // own ray meets the height field; p itself for one lookup), its frames turned by the
 // level's view tilt. Returns its weight.

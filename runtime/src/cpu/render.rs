@@ -78,8 +78,7 @@ pub struct LevelMix {
     pub fly_taps: (u32, u32),
     /// Level 0's grid where it is blended with level 1 (0 < λ < 1): `fine_taps.0` ×
     /// `fine_taps.1` nearest-texel lookups spread over `fine_axes` (world x–y; the
-    /// footprint's major axis first), each where its own parallel ray lands ((1, 1): the
-    /// hit's texel alone).
+    /// footprint's major axis first) beside the hit ((1, 1): the hit's texel alone).
     pub fine_axes: (Vec2, Vec2),
     pub fine_taps: (u32, u32),
 }
@@ -521,7 +520,9 @@ impl<'a> Scene<'a> {
                 let (n, m) = (mix.taps, mix.taps_minor);
                 let points: Vec<Vec3> = if coarse && n * m > 1 { (0..n * m).map(|k| self.tap_surface_point(ray, tap_offset(mix.axis, n, mix.minor_axis, m, k), ray.at(t), floor)).collect() } else { Vec::new() };
                 let (f0, f1) = mix.fine_taps;
-                let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| self.tap_surface_point(ray, tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), ray.at(t), floor)).collect() } else { Vec::new() };
+                // Level 0's grid at the offsets beside the hit: tracing each lookup's own ray (as
+                // the coarse grid does) bought 0–0.4 points more for up to 16 marches.
+                let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| ray.at(t) + tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k).extend(0.0)).collect() } else { Vec::new() };
                 let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix, if mix.lo == 0 { &fine } else { &points });
                 if mix.weight > 0.0 && mix.hi != mix.lo {
                     let (hi, l) = self.shade_surface(ray, t, mix.hi, &mix, &points);
@@ -634,7 +635,7 @@ impl<'a> Scene<'a> {
         let edit = self.edited.then(|| self.edit_at(p));
         let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));
         let radiance = if level == 0 && !points.is_empty() {
-            // Level 0 through its grid: the nearest texel where each lookup's ray lands.
+            // Level 0 through its grid: the nearest texel at each lookup.
             let share = 1.0 / points.len() as f32;
             let texels: Vec<(TexelBrdf, f32)> = points.iter().map(|&q| {
                 let (i, j) = self.texel_at(q, 0);
