@@ -16,7 +16,7 @@ use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
 
 fn settings() -> FitSettings {
-    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40 }
+    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40, free_frames: true, validation: 0 }
 }
 
 /// The mean response of `candidates` (equal shares) at each pair, with k_d = 0.
@@ -72,6 +72,27 @@ fn two_lobes_with_different_normals_keep_both_highlights() {
         let got = fitted(wi, wo);
         assert!(want.x > 0.03, "a highlight is there: {want}");
         assert!((got - want).length() < 0.05 * want.length(), "normal {n}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn two_lobes_of_crossing_yarns_keep_both_tangents_when_frames_are_free() {
+    // Warp and weft in one footprint, the same normal: the moments' single principal
+    // axis cannot hold both; with two lobes and free frames, each takes one.
+    let pairs = fit_pairs(256, 3);
+    let n = Vec3::new(0.1, 0.05, 1.0);
+    let candidates = vec![candidate(n, Vec3::X, 0.1), candidate(n, Vec3::X, 0.1), candidate(n, Vec3::Y, 0.1), candidate(n, Vec3::Y, 0.1)];
+    let target = target_of(&candidates, &pairs);
+    let fp = Footprint { candidates: &candidates, kd_normal: Vec3::ZERO, target: &target };
+    let two = FitSettings { max_lobes: 2, ..settings() };
+    let free = fit_footprint(&fp, &pairs, &two);
+    let moments = fit_footprint(&fp, &pairs, &FitSettings { free_frames: false, ..two });
+    assert!(free.error < 0.03, "free frames: {}", free.error);
+    assert!(moments.error > 3.0 * free.error, "moment frames {} against free {}", moments.error, free.error);
+    let tangents: Vec<Vec3> = free.lobes.iter().filter(|(l, _, _)| l.k.max_element() > 0.05).map(|&(_, _, t)| t).collect();
+    assert_eq!(tangents.len(), 2, "{free:?}");
+    for axis in [Vec3::X, Vec3::Y] {
+        assert!(tangents.iter().any(|t| t.dot(axis).abs() > 0.98), "no lobe along {axis}: {tangents:?}");
     }
 }
 

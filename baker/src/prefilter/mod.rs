@@ -49,6 +49,10 @@ use pairs::{Pair, fit_pairs};
 /// prefilter runs 5× faster. Up to [`MAX_LOBES`] stay available (`--prefilter-max-lobes`).
 pub const DEFAULT_MAX_LOBES: usize = 2;
 
+/// Pairs held out of each coarse texel's fit to check its frame refinement
+/// ([`lobe_fit::FitSettings::validation`]).
+pub const VALIDATION_PAIRS: usize = 64;
+
 /// How to prefilter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PrefilterOptions {
@@ -78,6 +82,9 @@ pub struct PrefilterOptions {
     pub periodic: bool,
     /// Nelder–Mead evaluations per free width (0: moments and NNLS only).
     pub evals_per_dim: usize,
+    /// Refine each coarse lobe's frame (tangent twist, normal tilt) with its widths,
+    /// rather than keeping the frame its group's moments give.
+    pub free_frames: bool,
     /// Fit each coarse texel's view tilt (its frames turn toward the viewer as its
     /// footprint's visible normals do; [`view_tilt`]).
     pub view_tilt: bool,
@@ -91,7 +98,7 @@ pub struct PrefilterOptions {
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, view_tilt: true, compact: true, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, free_frames: true, view_tilt: true, compact: true, seed: 1 }
     }
 }
 
@@ -181,11 +188,20 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         return Err(PrefilterError::Options(format!("{count} levels asked; a {w0}×{h0} model has 1..={most}")));
     }
     let start = Instant::now();
-    let pairs = fit_pairs(opts.pairs, opts.seed);
-    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim };
+    // Frames refined with the widths are checked on pairs the fit does not see
+    // (`FitSettings::validation`): they follow the fitted pairs, their targets
+    // accumulated with them.
+    let free_frames = opts.free_frames && opts.max_lobes <= lobe_fit::FREE_FRAME_LOBES;
+    let validation = if free_frames { VALIDATION_PAIRS } else { 0 };
+    let mut pairs = fit_pairs(opts.pairs, opts.seed);
+    let fitted_pairs = pairs.len();
+    if validation > 0 {
+        pairs.extend(fit_pairs(validation, opts.seed ^ 0x5eed_0f_f0a1));
+    }
+    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim, free_frames, validation };
     let mut out = model.clone();
     out.levels.truncate(1);
-    let mut report = PrefilterReport { pairs: pairs.len(), tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
+    let mut report = PrefilterReport { pairs: fitted_pairs, tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
     let texels: u64 = (1..count).map(|l| level_dims(w0, h0, l)).map(|(w, h)| w as u64 * h as u64).sum();
     let bar = stage(progress, "prefilter", texels);
     // Targets of the level below (None for level 0: evaluated where needed).
@@ -193,9 +209,10 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     // A BSDF: the transmission term is prefiltered too, on the pairs with the light
     // mirrored below the sheet, against the plain mean of the footprint's level-0 terms.
     let bsdf = model.levels[0].transmission.is_some();
-    let backlit: Vec<Pair> = pairs.iter().map(|&(wi, wo)| (cloth_mirror_z(wi), wo)).collect();
+    let backlit: Vec<Pair> = pairs[..fitted_pairs].iter().map(|&(wi, wo)| (cloth_mirror_z(wi), wo)).collect();
     let mut finer_trans: Option<Vec<Vec3>> = None;
     let np = pairs.len();
+    let nt = backlit.len();
     let tracer = HeightTracer::new(model, opts.periodic);
     let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
     let texel = model.texel_size();
@@ -248,11 +265,11 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                 let target: Vec<Vec3> = acc.iter().map(TargetAcc::value).collect();
                 let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal, target: &target }, &pairs, &settings);
                 let trans = bsdf.then(|| {
-                    let mut t_acc = vec![Vec3::ZERO; np];
+                    let mut t_acc = vec![Vec3::ZERO; nt];
                     for &(ci, cj, n) in &kids {
                         let share = n as f32 / total.max(1) as f32;
                         match &finer_trans {
-                            Some(t) => t_acc.iter_mut().zip(&t[(cj * fw + ci) as usize * np..][..np]).for_each(|(a, v)| *a += share * *v),
+                            Some(t) => t_acc.iter_mut().zip(&t[(cj * fw + ci) as usize * nt..][..nt]).for_each(|(a, v)| *a += share * *v),
                             None => {
                                 let b = level0.texel_brdf(ci, cj);
                                 t_acc.iter_mut().zip(&backlit).for_each(|(a, &(wi, wo))| *a += share * texel_transmission_response(&b, wi, wo));

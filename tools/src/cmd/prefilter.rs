@@ -52,6 +52,11 @@ pub struct PrefilterArgs {
     /// "Compact coarse records", measures both).
     #[arg(long)]
     pub full_precision: bool,
+    /// Keep each coarse lobe in the frame its group's moments give (the mean normal,
+    /// the principal tangent axis) rather than refining twist and tilt with its widths
+    /// (baker/PREFILTER_MEASUREMENTS.md, "Free frames").
+    #[arg(long)]
+    pub moment_frames: bool,
 }
 
 impl PrefilterArgs {
@@ -65,7 +70,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, compact: !self.full_precision, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, compact: !self.full_precision, free_frames: !self.moment_frames, seed, ..Default::default() })
     }
 }
 
