@@ -336,8 +336,9 @@ impl<'a> Scene<'a> {
             // λ = 0 to the whole footprint at λ = ½; baker/PREFILTER_MEASUREMENTS.md,
             // "Level 0 through a grid where it is blended"): one texel at the hit aliases
             // a footprint of two or three texels.
-            let (fine_axes, fine_taps) = if lo == 0 && weight > 0.0 && g > 1 {
-                let spread = (2.0 * weight).min(1.0);
+            let below = if std::env::var("FINE0").is_ok() { (minor - 1.0).clamp(0.0, 1.0) } else { 0.0 };
+            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || below > 0.0) && g > 1 {
+                let spread = (2.0 * weight).min(1.0).max(below);
                 ((axis * spread, minor_axis * spread), (grid_taps(n, g), g))
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
