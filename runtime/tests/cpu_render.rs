@@ -189,25 +189,33 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (1.0, 1.0, 4, 2)), (1.5, 2, (1.0, 0.5, 4, 2))] {
         assert!(close(fly(lambda, n, FILTER_GRID), want), "λ {lambda}, N {n}: {:?}", fly(lambda, n, FILTER_GRID));
     }
-    // Where level 0 is blended with level 1 (0 < λ < 1) it is read through a grid of
-    // its nearest texels, spread from nothing at λ = 0 to the footprint at λ = ½; one
-    // texel where level 0 is alone, and none past λ = 1 (the coarse grid's).
+    // Level 0 over a footprint wider than a texel is read through a grid of its nearest
+    // texels, spread from nothing at a minor axis of one texel to the footprint at two,
+    // and where it is blended with level 1 (0 < λ < 1) at least from nothing at λ = 0 to
+    // the footprint at λ = ½; under a texel the hit's texel alone (near views as they
+    // were), and none past λ = 1 (the coarse grid's).
     let model = examples::synthetic_model(64, 7);
     let scene = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     let t = model.texel_size().x;
     let mix_at = |texels: f32| scene.level_mix_axes(Some((Vec2::new(texels * t, 0.0), Vec2::new(0.0, texels * t))));
     let lambda_of = |texels: f32| texels.log2() + FILTER_OFFSET;
-    for texels in [1.5f32, 1.8, 2.0, 2.5, 3.0, 3.4] {
+    for texels in [0.5f32, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 3.0, 3.4] {
         let m = mix_at(texels);
         let lambda = lambda_of(texels);
-        if lambda <= 0.0 {
+        if texels <= 1.0 {
             assert_eq!((m.lo, m.weight, m.fine_taps), (0, 0.0, (1, 1)), "{texels} texels");
             continue;
         }
-        assert_eq!((m.lo, m.hi, m.fine_taps), (0, 1, (FILTER_GRID, FILTER_GRID)), "{texels} texels");
-        let spread = (2.0 * lambda).min(1.0);
+        assert_eq!((m.lo, m.fine_taps), (0, (FILTER_GRID, FILTER_GRID)), "{texels} texels");
+        assert_eq!(m.hi, if lambda > 0.0 { 1 } else { 0 }, "{texels} texels");
+        let spread = (2.0 * lambda).clamp(0.0, 1.0).max((texels - 1.0).min(1.0));
         assert!((m.fine_axes.0.length() - spread * texels * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - spread * texels * t).abs() < 1e-4 * t, "{texels} texels: {m:?}");
     }
+    // Continuous across λ = 0 (1.73 texels) and at one texel.
+    let spread_of = |texels: f32| mix_at(texels).fine_axes.0.length() / (texels * t);
+    let l0 = 2f32.powf(-FILTER_OFFSET);
+    assert!((spread_of(l0 * 0.999) - spread_of(l0 * 1.001)).abs() < 0.01, "{} / {}", spread_of(l0 * 0.999), spread_of(l0 * 1.001));
+    assert!(spread_of(1.001) < 0.01);
     assert_eq!(mix_at(4.0).fine_taps, (1, 1), "past λ = 1 the coarse grid reads the footprint");
     // The fine grid (`CoarseFilter::Fine`): G = 4 rays per axis through voxels a quarter
     // of a round footprint (two levels finer), N·G along a long one as the surface's

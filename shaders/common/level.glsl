@@ -34,9 +34,10 @@ struct LevelMix {
     vec2 fly_axis_b;
     uint fly_taps_a;
     uint fly_taps_b;
-    // Level 0's grid where it is blended with level 1 (0 < lambda < 1): fine_taps_a x
-    // fine_taps_b nearest-texel lookups spread over fine_axis_a, fine_axis_b beside the
-    // hit (1 x 1: the hit's texel alone). Twin: LevelMix::fine_*.
+    // Level 0's grid where its footprint is wider than a texel or it is blended with
+    // level 1 (0 < lambda < 1): fine_taps_a x fine_taps_b nearest-texel lookups spread
+    // over fine_axis_a, fine_axis_b beside the hit (1 x 1: the hit's texel alone).
+    // Twin: LevelMix::fine_*.
     vec2 fine_axis_a;
     vec2 fine_axis_b;
     uint fine_taps_a;
@@ -214,10 +215,13 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
         m.taps = taps;
         m.minor_axis = vec2(0.0);
         m.taps_minor = 1u;
-        // Blended with level 1, level 0 through a grid of its nearest texels, spread
-        // from nothing at lambda = 0 to the footprint at 1/2 (Scene::level_mix).
-        if (m.lo == 0u && m.weight > 0.0 && FILTER_GRID > 1u) {
-            float spread = min(2.0 * m.weight, 1.0);
+        // Level 0 over a footprint wider than a texel, through a grid of its nearest
+        // texels, spread from nothing at a minor axis of one texel to the footprint at
+        // two, and where level 1 is blended in, at least from nothing at lambda = 0 to
+        // the footprint at 1/2 (Scene::level_mix_axes).
+        float beyond_texel = clamp(minor - 1.0, 0.0, 1.0);
+        if (m.lo == 0u && (m.weight > 0.0 || beyond_texel > 0.0) && FILTER_GRID > 1u) {
+            float spread = max(min(2.0 * m.weight, 1.0), beyond_texel);
             m.fine_axis_a = axis * spread;
             m.fine_axis_b = minor_axis * spread;
             m.fine_taps_a = grid_taps(taps, FILTER_GRID);

@@ -183,7 +183,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                     tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
                 }
             }
-            // Level 0's grid where it is blended with level 1, beside the hit (not traced:
+            // Level 0's grid (a footprint past a texel, or blended with level 1), beside the hit (not traced:
             // Scene::trace_mixed says why).
             uint n0 = min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS);
             vec2 fine_xy[MAX_SURFACE_TAPS];

@@ -76,7 +76,8 @@ pub struct LevelMix {
     /// `fly`'s levels ((1, 1): the ray alone).
     pub fly_axes: (Vec2, Vec2),
     pub fly_taps: (u32, u32),
-    /// Level 0's grid where it is blended with level 1 (0 < λ < 1): `fine_taps.0` ×
+    /// Level 0's grid where its footprint is wider than a texel or it is blended with
+    /// level 1 (0 < λ < 1): `fine_taps.0` ×
     /// `fine_taps.1` nearest-texel lookups spread over `fine_axes` (world x–y; the
     /// footprint's major axis first) beside the hit ((1, 1): the hit's texel alone).
     pub fine_axes: (Vec2, Vec2),
@@ -331,14 +332,17 @@ impl<'a> Scene<'a> {
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             let (lo, hi, weight) = linear_levels(lambda, last);
-            // Blended with level 1, level 0 is read through a grid of its nearest texels
-            // (grid_taps(N, G) × G, evenly over the footprint, spread from nothing at
-            // λ = 0 to the whole footprint at λ = ½; baker/PREFILTER_MEASUREMENTS.md,
-            // "Level 0 through a grid where it is blended"): one texel at the hit aliases
-            // a footprint of two or three texels.
-            let below = if std::env::var("FINE0").is_ok() { (minor - 1.0).clamp(0.0, 1.0) } else { 0.0 };
-            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || below > 0.0) && g > 1 {
-                let spread = (2.0 * weight).min(1.0).max(below);
+            // Level 0 over a footprint wider than a texel is read through a grid of its
+            // nearest texels (grid_taps(N, G) × G, evenly over the footprint): one texel at
+            // the hit aliases a footprint of two or three texels. The grid spreads with
+            // the footprint's minor axis, from nothing at one texel to the whole footprint
+            // at two, and where level 1 is blended in, at least from nothing at λ = 0 to
+            // the whole footprint at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0
+            // through a grid where it is blended", "Level 0 through a grid from one texel
+            // across"). Footprints under a texel read the hit's texel alone, as before.
+            let beyond_texel = (minor - 1.0).clamp(0.0, 1.0);
+            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond_texel > 0.0) && g > 1 {
+                let spread = (2.0 * weight).min(1.0).max(beyond_texel);
                 ((axis * spread, minor_axis * spread), (grid_taps(n, g), g))
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
