@@ -211,6 +211,11 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
         let spread = (2.0 * lambda).clamp(0.0, 1.0).max((texels - 1.0).min(1.0));
         assert!((m.fine_axes.0.length() - spread * texels * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - spread * texels * t).abs() < 1e-4 * t, "{texels} texels: {m:?}");
     }
+    // A long footprint (1.5 × 3.4 texels, λ < 0): along its major axis the grid spans
+    // the minor axis's width in texels, not the whole footprint.
+    let m = scene.level_mix_axes(Some((Vec2::new(3.4 * t, 0.0), Vec2::new(0.0, 1.5 * t))));
+    assert_eq!((m.lo, m.hi, m.fine_taps.1), (0, 0, FILTER_GRID), "{m:?}");
+    assert!((m.fine_axes.0.length() - 0.5 * 1.5 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 0.5 * 1.5 * t).abs() < 1e-4 * t, "{m:?}");
     // Continuous across λ = 0 (1.73 texels) and at one texel.
     let spread_of = |texels: f32| mix_at(texels).fine_axes.0.length() / (texels * t);
     let l0 = 2f32.powf(-FILTER_OFFSET);

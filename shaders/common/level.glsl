@@ -219,11 +219,13 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
         // texels, spread from nothing at a minor axis of one texel to the footprint at
         // two, and where level 1 is blended in, at least from nothing at lambda = 0 to
         // the footprint at 1/2 (Scene::level_mix_axes).
+        // Along the major axis at most the minor axis's width in texels: a grazing
+        // view's plane offsets land on texels its rays do not meet.
         float beyond_texel = clamp(minor - 1.0, 0.0, 1.0);
         if (m.lo == 0u && (m.weight > 0.0 || beyond_texel > 0.0) && FILTER_GRID > 1u) {
-            float spread = max(min(2.0 * m.weight, 1.0), beyond_texel);
-            m.fine_axis_a = axis * spread;
-            m.fine_axis_b = minor_axis * spread;
+            float blended = min(2.0 * m.weight, 1.0);
+            m.fine_axis_a = axis * max(blended, beyond_texel * minor / major);
+            m.fine_axis_b = minor_axis * max(blended, beyond_texel);
             m.fine_taps_a = grid_taps(taps, FILTER_GRID);
             m.fine_taps_b = FILTER_GRID;
         }

@@ -336,14 +336,21 @@ impl<'a> Scene<'a> {
             // nearest texels (grid_taps(N, G) × G, evenly over the footprint): one texel at
             // the hit aliases a footprint of two or three texels. The grid spreads with
             // the footprint's minor axis, from nothing at one texel to the whole footprint
-            // at two, and where level 1 is blended in, at least from nothing at λ = 0 to
-            // the whole footprint at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0
+            // at two (along the major axis as wide in texels as along the minor), and where
+            // level 1 is blended in, at least from nothing at λ = 0 to the whole footprint
+            // at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0
             // through a grid where it is blended", "Level 0 through a grid from one texel
             // across"). Footprints under a texel read the hit's texel alone, as before.
             let beyond_texel = (minor - 1.0).clamp(0.0, 1.0);
             let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond_texel > 0.0) && g > 1 {
-                let spread = (2.0 * weight).min(1.0).max(beyond_texel);
-                ((axis * spread, minor_axis * spread), (grid_taps(n, g), g))
+                // Along the major axis, a grazing view's offsets in the plane land on texels
+                // the pixel's rays do not meet (parallax): there the minor axis's width in
+                // texels, at most (measured at 70°: the full major spread made satin's
+                // far view 24% too bright).
+                let blended = (2.0 * weight).min(1.0);
+                let spread_minor = blended.max(beyond_texel);
+                let spread_major = blended.max(beyond_texel * minor / major);
+                ((axis * spread_major, minor_axis * spread_minor), (grid_taps(n, g), g))
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
             };
