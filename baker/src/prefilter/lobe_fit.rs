@@ -547,7 +547,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
             }
             // The best on the fitted pairs of those that also do better on the held-out
             // ones: more freedom fits the pairs more closely but may miss the directions
-            // between them (the synthetic test model's 60° view went from 7% to 22%).
+            // between them (the synthetic test model's 60° view went from 7% to 11–22%).
             let base_held_out = held_out(&groups, &widths, &sol);
             for (ts, tw, tg) in tries {
                 if ts.frame_objective() < sol.frame_objective() && held_out(&tg, &tw, &ts) <= base_held_out {

@@ -338,9 +338,9 @@ impl<'a> Scene<'a> {
             // the footprint's minor axis, from nothing at one texel to the whole footprint
             // at two (along the major axis as wide in texels as along the minor), and where
             // level 1 is blended in, at least from nothing at λ = 0 to the whole footprint
-            // at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0
-            // through a grid where it is blended", "Level 0 through a grid from one texel
-            // across"). Footprints under a texel read the hit's texel alone, as before.
+            // at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid where it
+            // is blended", "Level 0 through a grid from one texel across"). Footprints
+            // under a texel read the hit's texel alone, as before.
             let beyond_texel = (minor - 1.0).clamp(0.0, 1.0);
             let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond_texel > 0.0) && g > 1 {
                 // Along the major axis, a grazing view's offsets in the plane land on texels
