@@ -37,7 +37,19 @@ struct Case {
     options: CpuRenderOptions,
 }
 
-fn compare(pass: &HybridPass, model: &HybridModel, lights: &[Light], case: &Case) -> (f64, f64, f64, RenderStats, RenderStats) {
+/// How closely the GPU's image follows the CPU twin's.
+struct Agreement {
+    rmse: f64,
+    flip: f64,
+    /// Fraction of pixels off by more than 1% of the peak (another branch taken).
+    differing: f64,
+    /// Relative RMSE over the other pixels: the arithmetic's own difference.
+    rmse_agreeing: f64,
+    gpu: RenderStats,
+    cpu: RenderStats,
+}
+
+fn compare(pass: &HybridPass, model: &HybridModel, lights: &[Light], case: &Case) -> Agreement {
     let gpu_model = pass.upload(model, case.options.periodic).unwrap();
     let frame = pass.render(&gpu_model, &case.camera, lights, &case.options, None).unwrap();
     let (cpu, cpu_stats) = render_with_stats(model, &case.camera, lights, &case.options).unwrap();
@@ -45,8 +57,35 @@ fn compare(pass: &HybridPass, model: &HybridModel, lights: &[Light], case: &Case
     let exposure = 1.0 / (cpu.pixels.iter().map(|p| p.max_element()).fold(1e-6f32, f32::max));
     let f = flip(&frame.image, &cpu, exposure).unwrap().mean as f64;
     let d = differing(&frame.image, &cpu);
-    println!("{}: relative RMSE {rmse:.2e}, FLIP {f:.2e}, {:.2}% of pixels differ > 1% of peak; levels GPU {:?} CPU {:?}", case.name, 100.0 * d, frame.stats.level_pixels, cpu_stats.level_pixels);
-    (rmse, f, d, frame.stats, cpu_stats)
+    let agreeing = rmse_where_agreeing(&frame.image, &cpu);
+    println!("{}: relative RMSE {rmse:.2e} ({agreeing:.2e} where they agree), FLIP {f:.2e}, {:.2}% of pixels differ > 1% of peak; levels GPU {:?} CPU {:?}", case.name, 100.0 * d, frame.stats.level_pixels, cpu_stats.level_pixels);
+    Agreement { rmse, flip: f, differing: d, rmse_agreeing: agreeing, gpu: frame.stats, cpu: cpu_stats }
+}
+
+/// Relative RMSE over the pixels that `differing` does not count.
+fn rmse_where_agreeing(a: &Image, b: &Image) -> f64 {
+    let peak = b.pixels.iter().map(|p| p.max_element()).fold(1e-6f32, f32::max);
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (x, y) in a.pixels.iter().zip(&b.pixels).filter(|(x, y)| (**x - **y).abs().max_element() <= 0.01 * peak) {
+        num += (*x - *y).as_dvec3().length_squared();
+        den += y.as_dvec3().length_squared();
+    }
+    if num == 0.0 { 0.0 } else { (num / den.max(1e-60)).sqrt() }
+}
+
+/// The twins' tolerances. The same f32 arithmetic, except the GPU's own exp, pow, sin,
+/// cos, log2, division (Vulkan: within a few ulps) and FMA contraction. Measured on
+/// lavapipe: relative RMSE 5e-8 to 1.3e-7, FLIP 0, no pixel off by 1% of the peak. On
+/// other drivers an ulp can move a hit across a texel or leaf edge, or a grazing shadow
+/// ray's decision, which changes that one pixel entirely: measured on an NVIDIA H200
+/// (driver 580), 3–8 such pixels in a test image (up to 0.5% of a 32×32 view; FLIP
+/// 6.4e-3, relative RMSE 3.4e-2, all of it from those pixels). Hence: at most 1% of the
+/// pixels may take another branch, and the others must agree to 1e-3.
+fn assert_twins_agree(name: &str, a: &Agreement) {
+    assert!(a.differing <= 0.01, "{name}: {:.2}% of pixels differ > 1% of peak", 100.0 * a.differing);
+    assert!(a.rmse_agreeing < 1e-3, "{name}: relative RMSE {:.2e} where the twins agree", a.rmse_agreeing);
+    assert!(a.flip < 1e-2, "{name}: FLIP {}", a.flip);
+    assert!(a.rmse < 0.1, "{name}: relative RMSE {}", a.rmse);
 }
 
 #[test]
@@ -69,16 +108,9 @@ fn gpu_matches_the_cpu_twin() {
         Case { name: "sample level 2, no shadows", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(2), shadows: ShadowMode::Off, ..opts.clone() } },
     ];
     for case in &cases {
-        let (rmse, f, d, gs, cs) = compare(&pass, &sample, &lights, case);
-        // Tolerances: the same f32 arithmetic, except the GPU's own exp/pow/sin/cos/log2
-        // (a few ulps) and FMA contraction. Measured on lavapipe: relative RMSE 5e-8 to
-        // 1.3e-7, FLIP 0, no pixel off by 1% of the peak, the same level per pixel. On
-        // other drivers an ulp can move a hit across a texel or leaf boundary, or a
-        // grazing shadow ray's decision, which changes that one pixel entirely: hence
-        // room for 0.5% of the pixels (RMSE ~ √fraction) and a FLIP of 5e-3.
-        assert!(rmse < 0.07, "{}: relative RMSE {rmse}", case.name);
-        assert!(f < 5e-3, "{}: FLIP {f}", case.name);
-        assert!(d < 5e-3, "{}: {d} of pixels differ", case.name);
+        let a = compare(&pass, &sample, &lights, case);
+        assert_twins_agree(case.name, &a);
+        let (gs, cs) = (&a.gpu, &a.cpu);
         assert_eq!(gs.tile_pixels, cs.tile_pixels, "{}", case.name);
         let level_diff: u64 = gs.level_pixels.iter().zip(&cs.level_pixels).map(|(a, b)| a.abs_diff(*b)).sum();
         assert!(level_diff as f64 <= 0.01 * cs.tile_pixels as f64 + 1.0, "{}: levels {:?} vs {:?}", case.name, gs.level_pixels, cs.level_pixels);
@@ -89,19 +121,16 @@ fn gpu_matches_the_cpu_twin() {
         Case { name: "synthetic near, periodic", camera: Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: Vec3::new(0.5, 0.5, 0.0), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 96, height: 72 }, options: CpuRenderOptions { periodic: true, ..opts.clone() } },
         Case { name: "synthetic far, auto (coarse levels, anisotropic taps)", camera: far_synth, options: CpuRenderOptions { periodic: true, ..opts.clone() } },
     ] {
-        let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &case);
-        assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
+        assert_twins_agree(case.name, &compare(&pass, &synthetic, &lights, &case));
     }
     // Three texels per pixel from above: level 0, read through its grid of nearest
     // texels, blended with level 1 (LevelMix::fine_taps).
     let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
-    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &mid);
-    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", mid.name);
+    assert_twins_agree(mid.name, &compare(&pass, &synthetic, &lights, &mid));
     // The one-lookup coarse filter (`--coarse-filter bilinear`, specialization constant
     // 7) in both twins, and a different image from the box grid's.
     let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };
-    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &bilinear);
-    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", bilinear.name);
+    assert_twins_agree(bilinear.name, &compare(&pass, &synthetic, &lights, &bilinear));
     let boxed = render(&synthetic, &far_synth, &lights, &CpuRenderOptions { periodic: true, ..opts.clone() }).unwrap();
     let one = render(&synthetic, &far_synth, &lights, &bilinear.options).unwrap();
     let apart = relative_rmse(&one, &boxed).unwrap();
@@ -109,8 +138,7 @@ fn gpu_matches_the_cpu_twin() {
     // The fine flyaway grid (`--coarse-filter fine`, specialization constant 8): the
     // twins agree, and its flyaways differ from the box filter's.
     let fine = Case { name: "synthetic far, fine flyaway grid", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Fine, ..opts.clone() } };
-    let (rmse, f, d, _, _) = compare(&pass, &synthetic, &lights, &fine);
-    assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", fine.name);
+    assert_twins_agree(fine.name, &compare(&pass, &synthetic, &lights, &fine));
     let finer = render(&synthetic, &far_synth, &lights, &fine.options).unwrap();
     let apart = relative_rmse(&finer, &boxed).unwrap();
     assert!(apart > 1e-4, "the fine flyaway grid drew the box filter's image ({apart})");
@@ -193,13 +221,17 @@ fn the_tile_on_a_plane_mesh_matches_the_tile_seen_directly() {
         }
         let exposure = 1.0 / direct.image.pixels.iter().map(|p| p.max_element()).fold(1e-6f32, f32::max);
         let f = flip(&on_mesh.image, &direct.image, exposure).unwrap().mean;
-        println!("plane mesh vs direct, {name}: relative RMSE {rmse:.2e}, FLIP {f:.2e}, mesh pass {:.1} ms", on_mesh.gpu_ms);
+        let (d, agreeing) = (differing(&on_mesh.image, &direct.image), rmse_where_agreeing(&on_mesh.image, &direct.image));
+        println!("plane mesh vs direct, {name}: relative RMSE {rmse:.2e} ({agreeing:.2e} where they agree), {:.2}% of pixels differ > 1% of peak, FLIP {f:.2e}, mesh pass {:.1} ms", 100.0 * d, on_mesh.gpu_ms);
         // The mesh pass stores radiance as f16 (2⁻¹¹ relative) and rounds the tile position
         // differently (from the UVs), which moves the odd hit across a texel edge; with a
         // perspective camera and auto levels its footprint (derivatives on the top plane)
         // would also differ from the one at the hit's height. Measured on lavapipe:
-        // relative RMSE 2.7e-3 (near) and 4e-4 (far), FLIP 4e-3.
-        assert!(rmse < tol, "{name}: relative RMSE {rmse}");
+        // relative RMSE 2.7e-3 (near) and 4e-4 (far), FLIP 4e-3; on an NVIDIA H200, 8
+        // of 6912 pixels of the near view on another texel (relative RMSE 1.4e-2, all
+        // of it theirs). Hence at most 1% of the pixels elsewhere, the rest within `tol`.
+        assert!(d <= 0.01, "{name}: {:.2}% of pixels differ", 100.0 * d);
+        assert!(agreeing < tol, "{name}: relative RMSE {agreeing} where they agree");
         assert!(f < 0.02, "{name}: FLIP {f}");
     }
     // A sphere: finite, lit, no validation errors.
@@ -372,7 +404,7 @@ fn environment_light_matches_the_cpu_twin() {
     ];
     for (name, cam, opts) in cases {
         let case = Case { name, camera: cam, options: opts.clone() };
-        let (rmse, _, d, gs, cs) = compare(&pass, &m, &[], &case);
+        let Agreement { rmse, differing: d, gpu: gs, cpu: cs, .. } = compare(&pass, &m, &[], &case);
         assert_eq!(gs.level_pixels, cs.level_pixels, "{name}");
         // A pixel whose lookup lands on a texel's edge may read its neighbour in one
         // twin (f32 rounding, FMA contraction): one such pixel of 2304 is 3.7e-3 here.
@@ -429,7 +461,7 @@ fn light_behind_the_cloth_matches_the_cpu_twin_and_costs_nothing_when_absent() {
         Case { name: "backlit far", camera: far.clone(), options: opts.clone() },
         Case { name: "backlit edited", camera: near.clone(), options: CpuRenderOptions { edits: edits.clone(), ..opts.clone() } },
     ] {
-        let (rmse, f, _, _, _) = compare(&pass, &model, &behind, &case);
+        let Agreement { rmse, flip: f, .. } = compare(&pass, &model, &behind, &case);
         assert!(rmse < 1e-4 && f < 1e-3, "{}: {rmse} {f}", case.name);
     }
     let g = pass.upload(&model, true).unwrap();
@@ -475,9 +507,7 @@ fn view_tilts_match_the_cpu_twin_and_change_the_coarse_levels() {
         Case { name: "tilted level 3, under the sky", camera: Camera::orbit_orthographic(55.0, 300.0, centre, 40.0, 3.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(3), env: Some(sky_light()), ..opts.clone() } },
     ];
     for case in &cases {
-        let (rmse, f, d, _, _) = compare(&pass, &tilted, &lights, case);
-        // The same tolerances as gpu_matches_the_cpu_twin (measured on lavapipe: ~1e-7).
-        assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
+        assert_twins_agree(case.name, &compare(&pass, &tilted, &lights, case));
         // The tilts matter on these views (so the agreement above is about them).
         let untilted = render(&plain, &case.camera, &lights, &case.options).unwrap();
         let with = render(&tilted, &case.camera, &lights, &case.options).unwrap();
@@ -529,9 +559,7 @@ fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
         Case { name: "spread level 2, under the sky", camera: Camera::orbit_orthographic(35.0, 300.0, centre, 40.0, 2.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), env: Some(sky_light()), ..opts.clone() } },
     ];
     for case in &cases {
-        let (rmse, f, d, _, _) = compare(&pass, &spread, &lights, case);
-        // The same tolerances as gpu_matches_the_cpu_twin.
-        assert!(rmse < 0.07 && f < 5e-3 && d < 5e-3, "{}: RMSE {rmse}, FLIP {f}, differing {d}", case.name);
+        assert_twins_agree(case.name, &compare(&pass, &spread, &lights, case));
         // The spreads matter on these views (so the agreement above is about them).
         let single = render(&plain, &case.camera, &lights, &case.options).unwrap();
         let with = render(&spread, &case.camera, &lights, &case.options).unwrap();

@@ -82,7 +82,7 @@ fn shader_structs_have_the_rust_layout() {
     }
     check(&r, "GpuLevel", members!(GpuLevel: dims, surface, texel_base, header_base, lobe_base, fly_nodes, fly_head_base, fly_node_base, fly_header_base, fly_lobe_base, voxel_depth, fly_edge, trans_base, tilt_base, spread_base));
     check(&r, "GpuQuadLevel", members!(GpuQuadLevel: dims, offset));
-    check(&r, "GpuModelHeader", members!(GpuModelHeader: origin, size, texel, n, top_z, height_scale, level_count, quad_count, leaf_offset, flags, levels, quad));
+    check(&r, "GpuModelHeader", members!(GpuModelHeader: origin, size, texel, n, top_z, height_scale, level_count, quad_count, leaf_offset, flags, inv_texel, levels, quad));
     check(&r, "GpuCamera", members!(GpuCamera: origin, forward, right, up, half_extents, size));
     check(&r, "GpuLight", members!(GpuLight: vec, power));
     check(&r, "GpuRenderParams", members!(GpuRenderParams: camera, background, light_count, max_steps, max_flyaway_columns, supersampling, level_mode, fixed_level, level_bias, coarse_relief, edit_tint, edit_roughness, edit_rotation, mask_dims, lights, env_info, env_frame, env_levels));

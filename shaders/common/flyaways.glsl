@@ -45,9 +45,11 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
     int span = 1 << level;
     ivec2 dims = ivec2(l.dims);
     bool periodic = model_periodic();
-    vec2 u0 = (o.xy - model.origin) / model.texel;
-    vec2 du = d.xy / model.texel;
-    vec2 u_start = u0 + du * t_start;
+    // Products with inv_texel and no fused multiply–add (`precise`): the column lines
+    // fall where the CPU twin's do.
+    vec2 u0 = (o.xy - model.origin) * model.inv_texel;
+    vec2 du = d.xy * model.inv_texel;
+    precise vec2 u_start = u0 + du * t_start;
     ivec2 tile;
     ivec2 k;
     for (int axis = 0; axis < 2; ++axis) {

@@ -56,7 +56,7 @@ vec4 hf_corners(int cx, int cy) {
 
 // The surface's depth at world (x, y): bilinear between texel centres.
 float hf_depth_at(float x, float y) {
-    vec2 q = vec2((x - model.origin.x) / model.texel.x - 0.5, (y - model.origin.y) / model.texel.y - 0.5);
+    precise vec2 q = (vec2(x, y) - model.origin) * model.inv_texel - vec2(0.5);
     vec2 f = floor(q);
     float s = q.x - f.x;
     float t = q.y - f.y;
@@ -68,10 +68,12 @@ float hf_depth_at(float x, float y) {
 
 // The leaf-space ray of (o, d), with t = 0 at o + d t0.
 HfRay hf_leaf_ray(vec3 o, vec3 d, float t0) {
-    vec3 p = o + d * t0;
+    // `precise` and products with inv_texel: the leaf lines fall where the CPU's do.
+    precise vec3 p = o + d * t0;
     HfRay r;
-    r.q0 = (p.xy - model.origin) / model.texel - vec2(0.5) + vec2(float(model.leaf_offset));
-    r.dq = d.xy / model.texel;
+    precise vec2 q0 = (p.xy - model.origin) * model.inv_texel - vec2(0.5) + vec2(float(model.leaf_offset));
+    r.q0 = q0;
+    r.dq = d.xy * model.inv_texel;
     r.d0 = model.top_z - p.z;
     r.dd = -d.z;
     return r;

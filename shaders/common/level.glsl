@@ -178,8 +178,8 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     if (!ok) {
         return level_single(last);
     }
-    float la = length(a / model.texel);
-    float lb = length(b / model.texel);
+    float la = length(a * model.inv_texel);
+    float lb = length(b * model.inv_texel);
     float major = la >= lb ? la : lb;
     float minor = la >= lb ? lb : la;
     vec2 axis = la >= lb ? a : b;

@@ -65,8 +65,8 @@ struct GpuModelHeader {
     uint quad_count;
     int leaf_offset;
     uint flags;
-    uint pad0;
-    uint pad1;
+    vec2 inv_texel; // 1 / texel, rounded on the CPU: texel coordinates are products
+
     GpuLevel levels[GPU_MAX_LEVELS];
     GpuQuadLevel quad[GPU_MAX_QUAD_LEVELS];
 };
@@ -236,8 +236,10 @@ float seen_from(inout TexelRef r, uint level, uvec2 ij, vec3 wo) {
 
 // The level-`level` texel under world point p (wrapped or clamped into the tile).
 // Twin: Scene::texel_at (runtime/src/cpu/render.rs).
+// `precise` (no fused multiply–add) and the product with inv_texel keep the texel
+// line where the CPU draws it: the choice of texel is exact in both twins.
 uvec2 texel_at(vec3 p, uint level) {
-    vec2 u = (p.xy - model.origin) / model.texel;
+    precise vec2 u = (p.xy - model.origin) * model.inv_texel;
     ivec2 ij = tile_index(int(floor(u.x)), int(floor(u.y)), model.n);
     return uvec2(uint(ij.x) >> level, uint(ij.y) >> level);
 }
@@ -248,11 +250,10 @@ uvec2 texel_at(vec3 p, uint level) {
 float bilinear_texel(vec3 p, uint level, int c, out uvec2 ij) {
     GpuLevel l = model.levels[level];
     ivec2 dims = ivec2(l.dims);
-    float span = float(1u << level);
-    vec2 u = (p.xy - model.origin) / (model.texel * span) - vec2(0.5);
+    precise vec2 u = ldexp((p.xy - model.origin) * model.inv_texel, ivec2(-int(level))) - vec2(0.5);
     vec2 f0 = floor(u);
-    float fx = u.x - f0.x;
-    float fy = u.y - f0.y;
+    precise float fx = u.x - f0.x;
+    precise float fy = u.y - f0.y;
     ij = uvec2(tile_index(int(f0.x) + (c & 1), int(f0.y) + (c >> 1), dims));
     float wx = (c & 1) != 0 ? fx : 1.0 - fx;
     float wy = (c >> 1) != 0 ? fy : 1.0 - fy;

@@ -13,13 +13,23 @@ use fabric_runtime::image::Image;
 use fabric_runtime::metrics::flip_srgb8;
 
 /// How much FLIP error a screenshot may have, with the reason for the bound.
+///
+/// `mean` catches a change spread over the image; `outliers` a local one (a patch of
+/// missing or wrong pixels). The outlier bound leaves room for the isolated pixels whose
+/// hit lands on another texel from one driver to another (an ulp of the interpolated
+/// position or of a division): 13 of 25 600 on a sphere golden drawn on an NVIDIA H200
+/// against lavapipe's. The weighted 95th percentile used before counted such a handful
+/// as a failure (0.15 against 0.05); it is still printed.
 #[derive(Clone, Copy, Debug)]
 pub struct FlipTolerance {
     /// Bound on the mean per-pixel FLIP error.
     pub mean: f32,
-    /// Bound on the weighted 95th percentile.
-    pub p95: f32,
+    /// Bound on the fraction of pixels with a FLIP error above [`OUTLIER_FLIP`].
+    pub outliers: f32,
 }
+
+/// Per-pixel FLIP error above which a pixel is an outlier (plainly visible).
+pub const OUTLIER_FLIP: f32 = 0.1;
 
 pub fn goldens_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("goldens")
@@ -56,9 +66,10 @@ pub fn check_golden(name: &str, image: &Image, exposure: f32, tol: FlipTolerance
         return fail(format!("{name}: image is {}x{}, golden is {}x{}", image.width, image.height, golden.width(), golden.height()), None);
     }
     let f = flip_srgb8(&actual, golden.as_raw(), image.width, image.height);
-    if f.mean > tol.mean || f.p95 > tol.p95 {
-        return fail(format!("{name}: FLIP mean {:.5} (allowed {}), p95 {:.5} (allowed {})", f.mean, tol.mean, f.p95, tol.p95), Some(f.error_map_rgb8()));
+    let outliers = f.error_map.iter().filter(|&&e| e > OUTLIER_FLIP).count() as f32 / f.error_map.len().max(1) as f32;
+    if f.mean > tol.mean || outliers > tol.outliers {
+        return fail(format!("{name}: FLIP mean {:.5} (allowed {}), {:.3}% of pixels above {OUTLIER_FLIP} (allowed {}%; weighted p95 {:.5})", f.mean, tol.mean, 100.0 * outliers, 100.0 * tol.outliers, f.p95), Some(f.error_map_rgb8()));
     }
-    eprintln!("{name}: FLIP mean {:.5}, p95 {:.5} (allowed {}, {})", f.mean, f.p95, tol.mean, tol.p95);
+    eprintln!("{name}: FLIP mean {:.5}, {:.3}% of pixels above {OUTLIER_FLIP} (allowed {}, {}%; weighted p95 {:.5})", f.mean, 100.0 * outliers, tol.mean, 100.0 * tol.outliers, f.p95);
     Ok(())
 }

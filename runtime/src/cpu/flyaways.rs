@@ -30,8 +30,8 @@ pub const TILE_LIMIT: f32 = 16_777_216.0;
 #[derive(Clone, Copy, Debug)]
 pub struct FlyawayGrid {
     origin: Vec2,
-    /// Level-0 texel size (world).
-    texel: Vec2,
+    /// 1 / the level-0 texel size (HybridModel::inv_texel_size): column coordinates are products.
+    inv_texel: Vec2,
     /// Level-0 texels per tile.
     n0: [i32; 2],
     /// Column width in level-0 texels: 2^ℓ.
@@ -54,7 +54,7 @@ impl FlyawayGrid {
         let l = &model.levels[level];
         FlyawayGrid {
             origin: model.tile.origin,
-            texel,
+            inv_texel: model.inv_texel_size(),
             n0: [model.width() as i32, model.height_px() as i32],
             span,
             dims: [l.width as i32, l.height as i32],
@@ -119,8 +119,8 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
         return out;
     }
     // Position in level-0 texel units: u(t) = u0 + du·t.
-    let u0 = (ray.o.truncate() - g.origin) / g.texel;
-    let du = ray.d.truncate() / g.texel;
+    let u0 = (ray.o.truncate() - g.origin) * g.inv_texel;
+    let du = ray.d.truncate() * g.inv_texel;
     let u_start = u0 + du * t_start;
     let mut cursor = [AxisCursor { tile: 0, k: 0 }; 2];
     for axis in 0..2 {

@@ -85,6 +85,8 @@ pub struct HeightTracer {
     levels: Vec<MinLevel>,
     origin: Vec2,
     texel: Vec2,
+    /// 1 / `texel` (HybridModel::inv_texel_size): texel coordinates are products.
+    inv_texel: Vec2,
     top_z: f32,
     height_scale: f32,
 }
@@ -96,7 +98,7 @@ impl HeightTracer {
         let samples: Vec<f32> = (0..n[1]).flat_map(|j| (0..n[0]).map(move |i| (i, j))).map(|(i, j)| model.depth(i as u32, j as u32)).collect();
         let offset = if periodic { 0 } else { 1 };
         let leaves = [n[0] + offset, n[1] + offset];
-        let mut tracer = HeightTracer { periodic, n, samples, offset, levels: Vec::new(), origin: model.tile.origin, texel: model.texel_size(), top_z: model.tile.top_z, height_scale: model.tile.height_scale };
+        let mut tracer = HeightTracer { periodic, n, samples, offset, levels: Vec::new(), origin: model.tile.origin, texel: model.texel_size(), inv_texel: model.inv_texel_size(), top_z: model.tile.top_z, height_scale: model.tile.height_scale };
         let mut level0 = Vec::with_capacity((leaves[0] * leaves[1]) as usize);
         for cy in 0..leaves[1] {
             for cx in 0..leaves[0] {
@@ -154,7 +156,7 @@ impl HeightTracer {
     /// The surface's depth at world (x, y): bilinear between texel centres (wrapped or
     /// clamped), the definition every renderer shares.
     pub fn depth_at(&self, x: f32, y: f32) -> f32 {
-        let q = Vec2::new((x - self.origin.x) / self.texel.x - 0.5, (y - self.origin.y) / self.texel.y - 0.5);
+        let q = (Vec2::new(x, y) - self.origin) * self.inv_texel - Vec2::splat(0.5);
         let f = q.floor();
         let (s, t) = (q.x - f.x, q.y - f.y);
         let (i, j) = (f.x as i32, f.y as i32);
@@ -165,8 +167,8 @@ impl HeightTracer {
     /// The leaf-space ray of `ray`, with t = 0 at the world point `ray.at(t0)`.
     pub fn leaf_ray(&self, ray: &Ray, t0: f32) -> HfRay {
         let p = ray.at(t0);
-        let q0 = (p.truncate() - self.origin) / self.texel - Vec2::splat(0.5) + Vec2::splat(self.offset as f32);
-        HfRay { q0, dq: ray.d.truncate() / self.texel, d0: self.top_z - p.z, dd: -ray.d.z }
+        let q0 = (p.truncate() - self.origin) * self.inv_texel - Vec2::splat(0.5) + Vec2::splat(self.offset as f32);
+        HfRay { q0, dq: ray.d.truncate() * self.inv_texel, d0: self.top_z - p.z, dd: -ray.d.z }
     }
 
     /// The first t in [t_start, t_stop] where `ray` is at least `bias` below the surface

@@ -307,8 +307,8 @@ impl<'a> Scene<'a> {
         let Some((a, b)) = axes else {
             return LevelMix::single(last);
         };
-        let texel = self.model.texel_size();
-        let (la, lb) = ((a / texel).length(), (b / texel).length());
+        let inv_texel = self.model.inv_texel_size();
+        let (la, lb) = ((a * inv_texel).length(), (b * inv_texel).length());
         let (major, minor, axis, minor_axis) = if la >= lb { (la, lb, a, b) } else { (lb, la, b, a) };
         if !(major > 0.0) {
             return LevelMix::single(0);
@@ -383,9 +383,9 @@ impl<'a> Scene<'a> {
     /// The pixel's footprint on the plane at height `z` in level-0 texels: the longer of
     /// the steps to the next pixel right and down (∞ if one of them misses the plane).
     pub fn footprint_texels_at(&self, px: f32, py: f32, z: f32) -> f32 {
-        let texel = self.model.texel_size();
+        let inv_texel = self.model.inv_texel_size();
         match self.footprint_axes_at(px, py, z) {
-            Some((a, b)) => (a / texel).length().max((b / texel).length()),
+            Some((a, b)) => (a * inv_texel).length().max((b * inv_texel).length()),
             None => f32::INFINITY,
         }
     }
@@ -393,7 +393,8 @@ impl<'a> Scene<'a> {
     /// The level-ℓ texel under world point `p` (wrapped or clamped into the tile).
     pub fn texel_at(&self, p: Vec3, level: usize) -> (u32, u32) {
         let m = self.model;
-        let u = (p.truncate() - m.tile.origin) / m.texel_size();
+        // A product with 1/texel, as the GPU twin: HybridModel::inv_texel_size.
+        let u = (p.truncate() - m.tile.origin) * m.inv_texel_size();
         let (w, h) = (m.width() as i32, m.height_px() as i32);
         let (i, j) = (u.x.floor() as i32, u.y.floor() as i32);
         let (i, j) = if self.options.periodic { (i.rem_euclid(w), j.rem_euclid(h)) } else { (i.clamp(0, w - 1), j.clamp(0, h - 1)) };
@@ -433,8 +434,8 @@ impl<'a> Scene<'a> {
         let m = self.model;
         let l = &m.levels[level];
         let (w, h) = (l.width as i32, l.height as i32);
-        let span = (1u32 << level) as f32;
-        let u = (p.truncate() - m.tile.origin) / (m.texel_size() * span) - Vec2::splat(0.5);
+        // 2^-level is exact: the GPU twin's ldexp.
+        let u = (p.truncate() - m.tile.origin) * m.inv_texel_size() * (1.0 / (1u32 << level) as f32) - Vec2::splat(0.5);
         let (i0, j0) = (u.x.floor(), u.y.floor());
         let (fx, fy) = (u.x - i0, u.y - j0);
         let index = |i: i32, n: i32| if self.options.periodic { i.rem_euclid(n) } else { i.clamp(0, n - 1) };

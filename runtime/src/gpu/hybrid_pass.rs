@@ -434,6 +434,18 @@ impl HybridPass {
     /// renderer's; `options.periodic` must match the upload). `variant` overrides the
     /// specialization (tests and benchmarks of the skips); None: what the scene needs.
     pub fn render(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
+        self.render_frames(model, camera, lights, options, variant, 1)
+    }
+
+    /// [`HybridPass::render`] `frames` times back to back in one submission; its
+    /// `gpu_ms` is the time per frame. A real-time loop's figure: separate `render`
+    /// calls leave the GPU idle between frames (the image's readback), and a discrete
+    /// GPU's clocks drop in those gaps, so their times vary by 2–4× from call to call.
+    pub fn render_back_to_back(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>, frames: u32) -> Result<HybridFrame, GpuRenderError> {
+        self.render_frames(model, camera, lights, options, variant, frames.max(1))
+    }
+
+    fn render_frames(&self, model: &GpuHybridModel, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>, frames: u32) -> Result<HybridFrame, GpuRenderError> {
         // The environment's sources are lights like the others (as the CPU's render).
         let lights = &options.lights_with_env(lights)[..];
         let shadows = validate_view(&model.model, camera, lights, options)?;
@@ -462,13 +474,25 @@ impl HybridPass {
             rec.timestamp(&timestamps, 0);
             rec.bind_pipeline(&pipeline);
             rec.bind_sets(&pipeline, &[&set]);
-            rec.dispatch(w.div_ceil(8), h.div_ceil(8), 1);
+            for k in 0..frames {
+                if k > 0 {
+                    // Each frame after the last, as in a frame loop.
+                    rec.memory_barrier();
+                }
+                rec.dispatch(w.div_ceil(8), h.div_ceil(8), 1);
+            }
             rec.timestamp(&timestamps, 1);
             rec.memory_barrier();
         })?;
-        let gpu_ms = timestamps.elapsed_ms(0, 1)?;
+        let gpu_ms = timestamps.elapsed_ms(0, 1)? / frames as f64;
         let raw: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&pixels.download()?);
-        let words: Vec<u32> = bytemuck::pod_collect_to_vec(stats.mapped().ok_or_else(|| VkError::Invalid("hybrid stats are not host-visible".into()))?);
+        let mut words: Vec<u32> = bytemuck::pod_collect_to_vec(stats.mapped().ok_or_else(|| VkError::Invalid("hybrid stats are not host-visible".into()))?);
+        if frames > 1 {
+            // Every frame counted the same pixels.
+            let steps = (words[6] as u64 | (words[7] as u64) << 32) / frames as u64;
+            words.iter_mut().for_each(|v| *v /= frames);
+            (words[6], words[7]) = (steps as u32, (steps >> 32) as u32);
+        }
         let non_finite = words[5];
         if non_finite > 0 {
             let k = raw.iter().position(|p| p[3] == 0.0).unwrap_or(0) as u32;

@@ -117,7 +117,8 @@ pub struct GpuModelHeader {
     pub leaf_offset: i32,
     /// `GPU_FLAG_*`.
     pub flags: u32,
-    pub pad: [u32; 2],
+    /// 1 / `texel`, rounded on the CPU (`HybridModel::inv_texel_size`).
+    pub inv_texel: [f32; 2],
     pub levels: [GpuLevel; GPU_MAX_LEVELS],
     pub quad: [GpuQuadLevel; GPU_MAX_QUAD_LEVELS],
 }
@@ -182,7 +183,7 @@ impl GpuModel {
                 quad_count: quad_count as u32,
                 leaf_offset: tracer.leaf_offset(),
                 flags,
-                pad: [0; 2],
+                inv_texel: model.inv_texel_size().to_array(),
                 levels: [GpuLevel::default(); GPU_MAX_LEVELS],
                 quad,
             },

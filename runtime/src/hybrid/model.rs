@@ -248,6 +248,15 @@ impl HybridModel {
         self.tile.size / Vec2::new(self.width() as f32, self.height_px() as f32)
     }
 
+    /// Level-0 texels per world unit in x and y: 1 / [`HybridModel::texel_size`], rounded
+    /// once here. Both renderers turn world x–y into texel coordinates by multiplying
+    /// with it: a GPU's division is only within 2.5 ulp (Vulkan's precision table), so
+    /// `x / texel` can land on the other side of a texel line than the CPU's, while a
+    /// product is correctly rounded on both.
+    pub fn inv_texel_size(&self) -> Vec2 {
+        Vec2::ONE / self.texel_size()
+    }
+
     /// Depth of height sample (i, j) below the top plane, world units.
     #[inline]
     pub fn depth(&self, i: u32, j: u32) -> f32 {
