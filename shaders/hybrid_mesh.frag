@@ -57,10 +57,13 @@ void main() {
     // dP/d(tile x), dP/d(tile y) from the screen derivatives of P and of the tile position.
     // Derivatives of interpolants only, scaled afterwards: a helper invocation (the
     // part of a 2x2 quad outside the triangle) need not load buffers (lavapipe's gives
-    // zeros), so dFdx of anything read from memory is wrong along triangle edges.
-    vec3 dpx = dFdx(p), dpy = dFdy(p);
+    // zeros), so dFdx of anything read from memory is wrong along triangle edges. Fine
+    // derivatives (per pixel, not per 2x2 quad): plain dFdx may be either, by driver,
+    // and the coarse one gives a quad one footprint, hence one level, where the tile
+    // pass's per-pixel rays give each pixel its own.
+    vec3 dpx = dFdxFine(p), dpy = dFdyFine(p);
     vec2 tile_per_uv = push.uv_scale * model.size;
-    vec2 dtx = dFdx(in_uv) * tile_per_uv, dty = dFdy(in_uv) * tile_per_uv;
+    vec2 dtx = dFdxFine(in_uv) * tile_per_uv, dty = dFdyFine(in_uv) * tile_per_uv;
     float det = dtx.x * dty.y - dtx.y * dty.x;
     vec3 t_w, b_w;
     if (abs(det) > 1e-30) {

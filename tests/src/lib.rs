@@ -17,9 +17,9 @@ use fabric_runtime::metrics::flip_srgb8;
 /// `mean` catches a change spread over the image; `outliers` a local one (a patch of
 /// missing or wrong pixels). The outlier bound leaves room for the isolated pixels whose
 /// hit lands on another texel from one driver to another (an ulp of the interpolated
-/// position or of a division): 13 of 25 600 on a sphere golden drawn on an NVIDIA H200
-/// against lavapipe's. The weighted 95th percentile used before counted such a handful
-/// as a failure (0.15 against 0.05); it is still printed.
+/// position or of a division): 0.23% of a sphere golden's pixels drawn on an NVIDIA
+/// H200 against lavapipe's. The weighted 95th percentile used before counted such a
+/// handful as a failure (0.15 against 0.05); it is still printed.
 #[derive(Clone, Copy, Debug)]
 pub struct FlipTolerance {
     /// Bound on the mean per-pixel FLIP error.

@@ -162,15 +162,15 @@ const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
-        let module = ShaderModule::embedded(device, "hybrid.comp")?;
+        let module = ShaderModule::embedded_or_edited(device, "hybrid.comp")?;
         let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
         let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::FRAGMENT)?;
         let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
-        let mesh_vert = ShaderModule::embedded(device, "hybrid_mesh.vert")?;
-        let mesh_frag = ShaderModule::embedded(device, "hybrid_mesh.frag")?;
-        let sky_vert = ShaderModule::embedded(device, "hybrid_sky.vert")?;
-        let sky_frag = ShaderModule::embedded(device, "hybrid_sky.frag")?;
+        let mesh_vert = ShaderModule::embedded_or_edited(device, "hybrid_mesh.vert")?;
+        let mesh_frag = ShaderModule::embedded_or_edited(device, "hybrid_mesh.frag")?;
+        let sky_vert = ShaderModule::embedded_or_edited(device, "hybrid_sky.vert")?;
+        let sky_frag = ShaderModule::embedded_or_edited(device, "hybrid_sky.frag")?;
         Ok(HybridPass {
             device: device.clone(),
             set_layout,

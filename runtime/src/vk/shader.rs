@@ -40,6 +40,19 @@ impl ShaderModule {
         let bytes = embedded::spirv(file).ok_or_else(|| VkError::Invalid(format!("no embedded shader named '{file}'")))?;
         ShaderModule::new(device, file, &spirv_words(bytes)?)
     }
+
+    /// [`ShaderModule::embedded`], unless `FABRIC_SHADER_DIR` holds `file`: then that
+    /// source (with its includes from the same directory) compiled now, so that a user
+    /// can edit or time a shader without rebuilding.
+    pub fn embedded_or_edited(device: &Arc<Device>, file: &str) -> VkResult<ShaderModule> {
+        match std::env::var_os("FABRIC_SHADER_DIR") {
+            Some(dir) if std::path::Path::new(&dir).join(file).is_file() => {
+                let text = source(file).ok_or_else(|| VkError::Invalid(format!("cannot read {file} from FABRIC_SHADER_DIR")))?;
+                ShaderModule::new(device, file, &compile_glsl(file, &text, &[])?)
+            }
+            _ => ShaderModule::embedded(device, file),
+        }
+    }
 }
 
 impl Drop for ShaderModule {
