@@ -146,6 +146,25 @@ fn gpu_matches_the_cpu_twin() {
 }
 
 #[test]
+fn frames_back_to_back_draw_the_same_frame_and_time_it_per_frame() {
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let model = examples::synthetic_model(32, 3);
+    let g = pass.upload(&model, true).unwrap();
+    let cam = Camera::orbit_orthographic(35.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 3.0, 24, 16);
+    let lights = [Light::directional(Vec3::new(-0.3, 0.2, 1.0), Vec3::ONE)];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let one = pass.render(&g, &cam, &lights, &opts, None).unwrap();
+    let three = pass.render_back_to_back(&g, &cam, &lights, &opts, None, 3).unwrap();
+    // The same dispatch three times: the same image, the statistics of one frame.
+    assert_eq!(one.image.pixels, three.image.pixels);
+    assert_eq!(one.stats, three.stats);
+    assert!(one.stats.camera_steps > 0 && one.stats.tile_pixels > 0);
+    assert!(three.gpu_ms.is_finite() && three.gpu_ms > 0.0, "{}", three.gpu_ms);
+    assert_no_validation_errors(&device);
+}
+
+#[test]
 fn the_variants_that_skip_work_draw_the_same_image_where_it_is_not_needed() {
     let device = device();
     let pass = HybridPass::new(&device).unwrap();

@@ -32,7 +32,7 @@ use glam::Vec3;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Suite {
-    /// Small volumes, one bake per preset: under 10 minutes on 2 cores.
+    /// Small volumes, one bake per preset: about 15 minutes on 2 cores.
     Quick,
     /// The large sizes (128×128×32): about an hour on 2 cores.
     Full,
