@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fly_box_grid};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fine_grid_spread, fly_box_grid, grid_taps};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -189,38 +189,42 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (1.0, 1.0, 4, 2)), (1.5, 2, (1.0, 0.5, 4, 2))] {
         assert!(close(fly(lambda, n, FILTER_GRID), want), "λ {lambda}, N {n}: {:?}", fly(lambda, n, FILTER_GRID));
     }
-    // Level 0 over a footprint wider than a texel is read through a grid of its nearest
-    // texels, spread from nothing at a minor axis of one texel to the footprint at two,
-    // and where it is blended with level 1 (0 < λ < 1) at least from nothing at λ = 0 to
-    // the footprint at λ = ½; under a texel the hit's texel alone (near views as they
-    // were), and none past λ = 1 (the coarse grid's).
+    // Level 0 is read through a grid of its nearest texels, spread from nothing at a
+    // minor axis of a quarter texel to the footprint at half a texel, and where it is
+    // blended with level 1 (0 < λ < 1) at least from nothing at λ = 0 to the footprint
+    // at λ = ½; under a quarter texel the hit's texel alone (close-ups as they were),
+    // and none past λ = 1 (the coarse grid's).
+    assert_eq!((FINE_GRID_FROM, FINE_GRID_FULL), (0.25, 0.5));
+    for (minor, want) in [(0.0f32, 0.0f32), (0.25, 0.0), (0.3, 0.2), (0.375, 0.5), (0.5, 1.0), (0.9, 1.0), (3.0, 1.0)] {
+        assert!((fine_grid_spread(minor) - want).abs() < 1e-6, "{minor}: {}", fine_grid_spread(minor));
+    }
     let model = examples::synthetic_model(64, 7);
     let scene = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     let t = model.texel_size().x;
     let mix_at = |texels: f32| scene.level_mix_axes(Some((Vec2::new(texels * t, 0.0), Vec2::new(0.0, texels * t))));
     let lambda_of = |texels: f32| texels.log2() + FILTER_OFFSET;
-    for texels in [0.5f32, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 3.0, 3.4] {
+    for texels in [0.1f32, 0.25, 0.3, 0.4, 0.5, 0.8, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 3.0, 3.4] {
         let m = mix_at(texels);
         let lambda = lambda_of(texels);
-        if texels <= 1.0 {
+        if texels <= FINE_GRID_FROM {
             assert_eq!((m.lo, m.weight, m.fine_taps), (0, 0.0, (1, 1)), "{texels} texels");
             continue;
         }
         assert_eq!((m.lo, m.fine_taps), (0, (FILTER_GRID, FILTER_GRID)), "{texels} texels");
         assert_eq!(m.hi, if lambda > 0.0 { 1 } else { 0 }, "{texels} texels");
-        let spread = (2.0 * lambda).clamp(0.0, 1.0).max((texels - 1.0).min(1.0));
+        let spread = (2.0 * lambda).clamp(0.0, 1.0).max(fine_grid_spread(texels));
         assert!((m.fine_axes.0.length() - spread * texels * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - spread * texels * t).abs() < 1e-4 * t, "{texels} texels: {m:?}");
     }
     // A long footprint (1.5 × 3.4 texels, λ < 0): along its major axis the grid spans
-    // the minor axis's width in texels, not the whole footprint.
+    // the minor axis's width in texels, not the whole footprint, with N·G lookups.
     let m = scene.level_mix_axes(Some((Vec2::new(3.4 * t, 0.0), Vec2::new(0.0, 1.5 * t))));
-    assert_eq!((m.lo, m.hi, m.fine_taps.1), (0, 0, FILTER_GRID), "{m:?}");
-    assert!((m.fine_axes.0.length() - 0.5 * 1.5 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 0.5 * 1.5 * t).abs() < 1e-4 * t, "{m:?}");
-    // Continuous across λ = 0 (1.73 texels) and at one texel.
+    assert_eq!((m.lo, m.hi, m.fine_taps), (0, 0, (grid_taps(3, FILTER_GRID), FILTER_GRID)), "{m:?}");
+    assert!((m.fine_axes.0.length() - 1.5 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 1.5 * t).abs() < 1e-4 * t, "{m:?}");
+    // Continuous across λ = 0 (1.73 texels) and at a quarter texel.
     let spread_of = |texels: f32| mix_at(texels).fine_axes.0.length() / (texels * t);
     let l0 = 2f32.powf(-FILTER_OFFSET);
     assert!((spread_of(l0 * 0.999) - spread_of(l0 * 1.001)).abs() < 0.01, "{} / {}", spread_of(l0 * 0.999), spread_of(l0 * 1.001));
-    assert!(spread_of(1.001) < 0.01);
+    assert!(spread_of(FINE_GRID_FROM * 1.001) < 0.01);
     assert_eq!(mix_at(4.0).fine_taps, (1, 1), "past λ = 1 the coarse grid reads the footprint");
     // The fine grid (`CoarseFilter::Fine`): G = 4 rays per axis through voxels a quarter
     // of a round footprint (two levels finer), N·G along a long one as the surface's

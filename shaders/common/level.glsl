@@ -54,6 +54,16 @@ uint grid_taps(uint n, uint grid) {
     return min(n * grid, max(MAX_ANISOTROPY, n));
 }
 
+// Level 0's grid: how far it spreads over a footprint whose minor axis spans `minor`
+// level-0 texels, 0 up to FINE_GRID_FROM, 1 from FINE_GRID_FULL (closer views read the
+// hit's texel alone). Twin: fine_grid_spread, FINE_GRID_FROM, FINE_GRID_FULL.
+const float FINE_GRID_FROM = 0.25;
+const float FINE_GRID_FULL = 0.5;
+
+float fine_grid_spread(float minor) {
+    return clamp((minor - FINE_GRID_FROM) / (FINE_GRID_FULL - FINE_GRID_FROM), 0.0, 1.0);
+}
+
 // Most flyaway rays along a footprint's major axis per ray across it. Twin:
 // FLY_MAX_ANISOTROPY.
 #define FLY_MAX_ANISOTROPY 2u
@@ -215,17 +225,17 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
         m.taps = taps;
         m.minor_axis = vec2(0.0);
         m.taps_minor = 1u;
-        // Level 0 over a footprint wider than a texel, through a grid of its nearest
-        // texels, spread from nothing at a minor axis of one texel to the footprint at
-        // two, and where level 1 is blended in, at least from nothing at lambda = 0 to
-        // the footprint at 1/2 (Scene::level_mix_axes).
+        // Level 0 through a grid of its nearest texels, spread from nothing at a minor
+        // axis of FINE_GRID_FROM texels to the footprint at FINE_GRID_FULL, and where
+        // level 1 is blended in, at least from nothing at lambda = 0 to the footprint
+        // at 1/2 (Scene::level_mix_axes).
         // Along the major axis at most the minor axis's width in texels: a grazing
         // view's plane offsets land on texels its rays do not meet.
-        float beyond_texel = clamp(minor - 1.0, 0.0, 1.0);
-        if (m.lo == 0u && (m.weight > 0.0 || beyond_texel > 0.0) && FILTER_GRID > 1u) {
+        float beyond = fine_grid_spread(minor);
+        if (m.lo == 0u && (m.weight > 0.0 || beyond > 0.0) && FILTER_GRID > 1u) {
             float blended = min(2.0 * m.weight, 1.0);
-            m.fine_axis_a = axis * max(blended, beyond_texel * minor / major);
-            m.fine_axis_b = minor_axis * max(blended, beyond_texel);
+            m.fine_axis_a = axis * max(blended, beyond * minor / major);
+            m.fine_axis_b = minor_axis * max(blended, beyond);
             m.fine_taps_a = grid_taps(taps, FILTER_GRID);
             m.fine_taps_b = FILTER_GRID;
         }

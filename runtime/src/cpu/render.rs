@@ -76,8 +76,8 @@ pub struct LevelMix {
     /// `fly`'s levels ((1, 1): the ray alone).
     pub fly_axes: (Vec2, Vec2),
     pub fly_taps: (u32, u32),
-    /// Level 0's grid where its footprint is wider than a texel or it is blended with
-    /// level 1 (0 < λ < 1): `fine_taps.0` ×
+    /// Level 0's grid where its footprint spans more than a quarter texel
+    /// ([`fine_grid_spread`]) or it is blended with level 1 (0 < λ < 1): `fine_taps.0` ×
     /// `fine_taps.1` nearest-texel lookups spread over `fine_axes` (world x–y; the
     /// footprint's major axis first) beside the hit ((1, 1): the hit's texel alone).
     pub fine_axes: (Vec2, Vec2),
@@ -223,6 +223,23 @@ pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
 /// the flyaways").
 pub const FLY_FINE_GRID: u32 = 4;
 
+/// Level 0's grid of nearest texels starts to spread at a footprint (minor axis) of
+/// this many texels: closer views point-sample the hit's texel, bit for bit as before.
+pub const FINE_GRID_FROM: f32 = 0.25;
+/// ... and spans the whole footprint from this many texels on. The distance sweep's
+/// nearest steps (½ to 1.6 texels per pixel, twill 128²) went from 12.9 / 11.5 / 9.0%
+/// with the grid from one texel across to 9.0 / 8.9 / 8.5%
+/// (baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid from a quarter texel
+/// across").
+pub const FINE_GRID_FULL: f32 = 0.5;
+
+/// How far level 0's grid spreads over a footprint whose minor axis spans `minor`
+/// level-0 texels: 0 up to [`FINE_GRID_FROM`], 1 from [`FINE_GRID_FULL`], linear
+/// between. Twin: `fine_grid_spread` in shaders/common/level.glsl.
+pub fn fine_grid_spread(minor: f32) -> f32 {
+    ((minor - FINE_GRID_FROM) / (FINE_GRID_FULL - FINE_GRID_FROM)).clamp(0.0, 1.0)
+}
+
 /// One level's flyaways along a ray.
 struct FlyShade {
     radiance: Vec3,
@@ -332,24 +349,26 @@ impl<'a> Scene<'a> {
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             let (lo, hi, weight) = linear_levels(lambda, last);
-            // Level 0 over a footprint wider than a texel is read through a grid of its
-            // nearest texels (grid_taps(N, G) × G, evenly over the footprint): one texel at
-            // the hit aliases a footprint of two or three texels. The grid spreads with
-            // the footprint's minor axis, from nothing at one texel to the whole footprint
-            // at two (along the major axis as wide in texels as along the minor), and where
-            // level 1 is blended in, at least from nothing at λ = 0 to the whole footprint
-            // at λ = ½ (baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid where it
-            // is blended", "Level 0 through a grid from one texel across"). Footprints
-            // under a texel read the hit's texel alone, as before.
-            let beyond_texel = (minor - 1.0).clamp(0.0, 1.0);
-            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond_texel > 0.0) && g > 1 {
+            // Level 0 is read through a grid of its nearest texels (grid_taps(N, G) × G,
+            // evenly over the footprint) once the footprint is a good part of a texel: one
+            // texel at the hit point-samples a box that a texel's border may cross, which
+            // aliases (sharp texel-to-texel contrast at ½–2 texels per pixel). The grid spreads
+            // with the footprint's minor axis, from nothing at [`FINE_GRID_FROM`] texels
+            // to the whole footprint at [`FINE_GRID_FULL`] (along the major axis as wide
+            // in texels as along the minor), and where level 1 is blended in, at least
+            // from nothing at λ = 0 to the whole footprint at λ = ½
+            // (baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid where it is
+            // blended", "Level 0 through a grid from a quarter texel across"). Close-ups,
+            // at most a quarter texel per pixel, read the hit's texel alone, as before.
+            let beyond = fine_grid_spread(minor);
+            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond > 0.0) && g > 1 {
                 // Along the major axis, a grazing view's offsets in the plane land on texels
                 // the pixel's rays do not meet (parallax): there the minor axis's width in
                 // texels, at most (measured at 70°: the full major spread made satin's
                 // far view 24% too bright).
                 let blended = (2.0 * weight).min(1.0);
-                let spread_minor = blended.max(beyond_texel);
-                let spread_major = blended.max(beyond_texel * minor / major);
+                let spread_minor = blended.max(beyond);
+                let spread_major = blended.max(beyond * minor / major);
                 ((axis * spread_major, minor_axis * spread_minor), (grid_taps(n, g), g))
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
@@ -677,18 +696,21 @@ impl<'a> Scene<'a> {
         // visibility v would count that twice (measured: twill 45°, 6.0% without v, 7.8%
         // with), so only their frames turn.
         let texel = |i: u32, j: u32| edited(if level == 0 { l.texel_brdf(i, j) } else { self.texel_seen(level, i, j, wo).0 });
-        let texels: Vec<(TexelBrdf, f32)> = corners.iter().map(|&((i, j), w)| (texel(i, j), w)).collect();
+        // Each distinct texel shaded once, weighted by the sum of its lookups' weights
+        // (the same sum by linearity, to rounding): a grid's lookups share texels (a 2×2
+        // grid one texel apart reads 9 distinct texels of its 16 corners; level 0's grid
+        // over a footprint of half a texel mostly one or two), and a texel's shading —
+        // under an environment map its SG mixtures above all — costs far more than
+        // finding its repeats. A far frame under the sky draws 1.5–1.9× faster, a frame
+        // at half a texel per pixel 1.6× (runtime/ENV_MEASUREMENTS.md, "Speed";
+        // baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid from a quarter texel
+        // across"). The GPU twin (shade_blend) shades every corner in order: in a SIMD
+        // group a lane that skips a repeat idles while its neighbours shade theirs, and
+        // with the search for repeats the frame was 7–14% slower on lavapipe.
+        let texels: Vec<(TexelBrdf, f32)> = distinct_corners(&corners).into_iter().map(|((i, j), w)| (texel(i, j), w)).collect();
         let mut radiance = shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible);
         if self.options.env.is_some() {
-            // Each distinct texel's SG mixtures once, weighted by the sum of its lookups'
-            // weights (the same sum by linearity): a grid's lookups share texels (a 2×2
-            // grid one texel apart reads 9 distinct texels of its 16 corners), and a
-            // texel's mixtures cost far more than finding its repeats. A far frame under
-            // the sky draws 1.5–1.9× faster, the same image. The GPU twin (shade_blend's
-            // environment loop) shades every corner: in a SIMD group a lane that skips a
-            // repeat idles while its neighbours shade theirs, and with the search for
-            // repeats the frame was 7–14% slower on lavapipe. The two agree to rounding.
-            radiance += distinct_corners(&corners).into_iter().map(|((i, j), w)| w * self.env_response(&texel(i, j), wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>();
+            radiance += texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>();
         }
         (radiance, shadow_limited)
     }
