@@ -240,16 +240,17 @@ vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap
 const uint MAX_SURFACE_TAPS = 16u;
 
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0; with a
-// grid, n > 1, the nearest texel at lookup k beside the hit, weight 1/n), or at
+// grid, n > 1, distinct texel k of the grid's lookups, weight tap_w[k]), or at
 // coarse levels corner k % 4 of the bilinear lookup at tap_xy[k / 4] (where that tap's
 // own ray meets the height field; p itself for one lookup), its frames turned by the
 // level's view tilt. Returns its weight.
-float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
+float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_w[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
     if (level == 0u) {
-        // Level 0's grid (n lookups, each its nearest texel) or the hit's texel.
+        // Level 0's grid (distinct texel k, at a lookup in it, with its lookups' summed
+        // weight: level0_distinct) or the hit's texel.
         uvec2 ij0 = texel_at(n <= 1u ? p : vec3(tap_xy[k], p.z), 0u);
         r = texel_brdf(0u, ij0.x, ij0.y);
-        return n <= 1u ? 1.0 : 1.0 / float(n);
+        return n <= 1u ? 1.0 : tap_w[k];
     }
     vec3 q = n <= 1u ? p : vec3(tap_xy[k >> 2], p.z);
     uvec2 ij;
@@ -261,6 +262,35 @@ float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], 
     return n <= 1u ? w : w / float(n);
 }
 
+// Level 0's grid of n lookups, each distinct texel once: its first lookup's place moved
+// to tap_xy[k] and the sum of its lookups' weights 1/n, in order, in tap_w[k], k in order
+// of first appearance; returns how many (distinct_corners). At half a texel per pixel the
+// 4-8 lookups of a grid fall in one to four texels: a list rather than a skipped lookup,
+// so that a SIMD group loops over the most texels one of its lanes has, not over every
+// lookup. The coarse grids' corners are shaded one by one (distinct texels there are 9
+// of 16, and finding them made frames slower on lavapipe).
+uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], out float tap_w[MAX_SURFACE_TAPS]) {
+    uvec2 seen[MAX_SURFACE_TAPS];
+    float share = 1.0 / float(n);
+    uint m = 0u;
+    for (uint c = 0u; c < n; ++c) {
+        uvec2 ij = texel_at(vec3(tap_xy[c], p.z), 0u);
+        uint k = 0u;
+        while (k < m && any(notEqual(seen[k], ij))) {
+            ++k;
+        }
+        if (k == m) {
+            seen[m] = ij;
+            tap_xy[m] = tap_xy[c];
+            tap_w[m] = share;
+            ++m;
+        } else {
+            tap_w[k] += share;
+        }
+    }
+    return m;
+}
+
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
 // light's visibility once.
 vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, inout uint limited) {
@@ -268,6 +298,10 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
     uint count = level == 0u ? max(n, 1u) : 4u * n;
+    float tap_w[MAX_SURFACE_TAPS];
+    if (level == 0u && n > 1u) {
+        count = level0_distinct(p, n, tap_xy, tap_w);
+    }
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
         vec3 wi;
@@ -283,7 +317,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
                 vec3 through = vec3(0.0);
                 for (uint c = 0u; c < count; ++c) {
                     TexelRef r;
-                    float w = surface_texel(level, p, wo, tap_xy, n, c, r);
+                    float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
                     through += w * texel_transmission_response(r, e, true, wi, wo);
                 }
                 radiance += irradiance * through;
@@ -293,7 +327,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
         vec3 response = vec3(0.0);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, tap_xy, n, c, r);
+            float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
             response += w * texel_response(r, e, true, wi, wo, reading, diffuse);
         }
         if (max3(response) <= 0.0) {
@@ -305,7 +339,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
     if (HAS_ENV) {
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, tap_xy, n, c, r);
+            float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
         }
     }

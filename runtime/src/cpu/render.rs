@@ -704,9 +704,10 @@ impl<'a> Scene<'a> {
         // finding its repeats. A far frame under the sky draws 1.5–1.9× faster, a frame
         // at half a texel per pixel 1.6× (runtime/ENV_MEASUREMENTS.md, "Speed";
         // baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid from a quarter texel
-        // across"). The GPU twin (shade_blend) shades every corner in order: in a SIMD
-        // group a lane that skips a repeat idles while its neighbours shade theirs, and
-        // with the search for repeats the frame was 7–14% slower on lavapipe.
+        // across"). The GPU twin does the same on level 0's grid (level0_distinct in
+        // shaders/common/shading.glsl) and shades a coarse grid's every corner in order:
+        // there distinct texels are 9 of 16, and with the search for them the frame was
+        // 7–14% slower on lavapipe (a SIMD group loops over its lanes' most).
         let texels: Vec<(TexelBrdf, f32)> = distinct_corners(&corners).into_iter().map(|((i, j), w)| (texel(i, j), w)).collect();
         let mut radiance = shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible);
         if self.options.env.is_some() {
