@@ -127,6 +127,14 @@ fn gpu_matches_the_cpu_twin() {
     // texels, blended with level 1 (LevelMix::fine_taps).
     let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
     assert_twins_agree(mid.name, &compare(&pass, &synthetic, &lights, &mid));
+    // Half a texel per pixel at 45°: level 0 alone through its grid of 4 × 2 nearest
+    // texels, most of them repeats, which the GPU lists once each (level0_distinct).
+    let half = Case { name: "synthetic at half a texel per pixel, level 0's grid with repeats", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 0.25, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+    let scene = fabric_runtime::cpu::render::Scene::new(&synthetic, &half.camera, &lights, half.options.clone()).unwrap();
+    let m = scene.level_mix(16.5, 16.5, synthetic.tile.top_z);
+    assert!(m.lo == 0 && m.weight == 0.0 && m.fine_taps == (4, 2), "{m:?}");
+    assert!(m.fine_axes.0.length() < synthetic.texel_size().x, "the grid spans less than a texel: {m:?}");
+    assert_twins_agree(half.name, &compare(&pass, &synthetic, &lights, &half));
     // The one-lookup coarse filter (`--coarse-filter bilinear`, specialization constant
     // 7) in both twins, and a different image from the box grid's.
     let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };
