@@ -702,7 +702,7 @@ impl<'a> Scene<'a> {
         // over a footprint of half a texel mostly one or two), and a texel's shading —
         // under an environment map its SG mixtures above all — costs far more than
         // finding its repeats. A far frame under the sky draws 1.5–1.9× faster, a frame
-        // at half a texel per pixel 1.6× (runtime/ENV_MEASUREMENTS.md, "Speed";
+        // at half a texel per pixel 1.5× (runtime/ENV_MEASUREMENTS.md, "Speed";
         // baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid from a quarter texel
         // across"). The GPU twin does the same on level 0's grid (level0_distinct in
         // shaders/common/shading.glsl) and shades a coarse grid's every corner in order:
