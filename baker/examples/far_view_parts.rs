@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `SWEEP=1` the distance sweep alone, `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `SWEEP=1` the distance sweep alone (`PART=surface` or `PART=flyaways` for one part; `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
 //! nodes' responses at 70°.
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
@@ -48,6 +48,17 @@ fn main() {
     let model = format::read_file(std::path::Path::new(&args[1])).expect("read the model");
     let pixels = args.get(2).map_or(16, |s| s.parse().unwrap());
     if std::env::var("SWEEP").is_ok() {
+        // `PART=surface`: flyaways out of every level, truth included; `PART=flyaways`:
+        // the surface black.
+        let model = match std::env::var("PART").as_deref() {
+            Ok("surface") => without_flyaways(&model),
+            Ok("flyaways") => surface_black(&model),
+            _ => model,
+        };
+        if std::env::var("SWEEP_SS").is_ok() {
+            sweep_supersampled(&model);
+            return;
+        }
         for s in fabric_baker::prefilter::far_view::distance_sweep(&model, 32, 8).expect("the sweep") {
             println!("sweep {:5.2} texels/px: chain {:.2}%  level 0 at 1 spp {:.2}%", s.texels_per_pixel, 100.0 * s.chain, 100.0 * s.level0);
         }
@@ -63,12 +74,28 @@ fn main() {
     if std::env::var("AS_IS_ONLY").is_ok() {
         return;
     }
+    views(&without_flyaways(&model), pixels, "no flyaways  ");
+    views(&surface_black(&model), pixels, "flyaways only");
+    if std::env::var("NODES").is_ok() {
+        node_responses(&model);
+    }
+    if std::env::var("OPACITY").is_ok() {
+        for polar in [0.0, 45.0, 70.0] {
+            opacity_by_level(&model, polar);
+        }
+    }
+}
+
+fn without_flyaways(model: &HybridModel) -> HybridModel {
     let mut bare = model.clone();
     for l in bare.levels.iter_mut() {
         l.flyaways = None;
     }
-    views(&bare, pixels, "no flyaways  ");
-    // The surface black: what the flyaways alone bring.
+    bare
+}
+
+/// The surface black: what the flyaways alone bring.
+fn surface_black(model: &HybridModel) -> HybridModel {
     let mut dark = model.clone();
     for l in dark.levels.iter_mut() {
         let table = match &mut l.surface {
@@ -79,15 +106,7 @@ fn main() {
         table.lobes.iter_mut().for_each(|l| l.k = [0; 3]);
         l.transmission = None;
     }
-    views(&dark, pixels, "flyaways only");
-    if std::env::var("NODES").is_ok() {
-        node_responses(&model);
-    }
-    if std::env::var("OPACITY").is_ok() {
-        for polar in [0.0, 45.0, 70.0] {
-            opacity_by_level(&model, polar);
-        }
-    }
+    dark
 }
 
 /// Mean flyaway opacity seen along the far view's rays, per fixed level.
@@ -128,5 +147,33 @@ pub fn node_responses(model: &HybridModel) {
         }
         let p = f.table.brdf_in_frame(0, fabric_runtime::brdf::cloth_frame(glam::Vec3::Z, glam::Vec3::X)).params;
         println!("  level {level}: {} nodes, mean response {:.4}, {} lit; entry 0: kd {:.3} a {:.2} eta {:.2} lobes {:?}", f.nodes.len(), sum / f.nodes.len() as f64, lit, p.kd, p.a, p.eta, &p.lobes[..p.lobe_count as usize]);
+    }
+}
+
+/// The sweep's three nearest steps with the chain at 1, 2 and 4² samples per pixel:
+/// whether what is left there is aliasing (falls with samples) or bias (does not).
+fn sweep_supersampled(model: &HybridModel) {
+    use fabric_runtime::scene::{Camera, Projection, direction_from_angles};
+    use glam::Vec3;
+    let b = model.bounds();
+    let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
+    let (fov, pixels) = (40f32, 32u32);
+    let pixel_at = 2.0 * (0.5 * fov).to_radians().tan() / pixels as f32;
+    let light = [far_light()];
+    for texels in [0.5f32, 0.91, 1.64] {
+        let d = texels * model.texel_size().x / pixel_at;
+        let dir = direction_from_angles(45.0, fabric_baker::prefilter::far_view::VIEW_AZIMUTH);
+        let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
+        let f = ((1.6 * texels * std::f32::consts::SQRT_2 * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
+        let big = Camera { width: pixels * f, height: pixels * f, ..camera };
+        let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, ..Default::default() };
+        let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
+        let mut line = format!("{texels:.2} texels/px:");
+        for ss in [1u32, 2, 4] {
+            let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, ss)).unwrap();
+            let l0 = render(model, &camera, &light, &opt(LevelChoice::Fixed(0), ss)).unwrap();
+            line += &format!("  {ss}x{ss}: chain {:.2}% level0 {:.2}% (chain mean/truth {:.3})", 100.0 * relative_rmse(&chain, &truth).unwrap(), 100.0 * relative_rmse(&l0, &truth).unwrap(), mean(&chain) / mean(&truth));
+        }
+        println!("{line}");
     }
 }

@@ -172,21 +172,27 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     let g = box_grid(edge * 1.001, edge * 1.001, 1, 1.0 + 1.001f32.log2(), 0.0, FILTER_GRID).unwrap();
     assert!(g.span_major < 0.2 && g.span_minor < 0.2 && g.lambda == 1.0, "{g:?}");
     assert!(box_grid(edge, edge, 1, 1.0, 0.0, FILTER_GRID).is_none());
-    // The flyaways' grid: one ray up to λ = log2 major = 1, level 1 with a growing
-    // spread to λ = 2, then one level finer over the whole footprint; continuous in λ.
+    // The flyaways' grid: one ray up to a footprint of a quarter texel, then G × G rays
+    // one level finer (never below level 0) spreading to the whole footprint at half a
+    // texel, as level 0's grid of the surface; continuous in distance.
     let fly = |lambda: f32, n: u32, grid: u32| {
         let g = fly_box_grid(lambda.exp2(), n, 0.0, grid);
         (g.lambda, g.spread, g.taps_major, g.taps_minor)
     };
     let close = |a: (f32, f32, u32, u32), b: (f32, f32, u32, u32)| (a.0 - b.0).abs() < 1e-5 && (a.1 - b.1).abs() < 1e-5 && (a.2, a.3) == (b.2, b.3);
-    for (lambda, want) in [(0.5f32, (0.5f32, 0.0f32, 1, 1)), (1.0, (1.0, 0.0, 1, 1)), (1.25, (1.0, 0.25, 2, 2)), (2.0, (1.0, 1.0, 2, 2)), (3.5, (2.5, 1.0, 2, 2))] {
+    let (quarter, three_eighths) = (0.25f32.log2(), 0.375f32.log2());
+    for (lambda, want) in [(-3.0f32, (0.0f32, 0.0f32, 1, 1)), (quarter, (0.0, 0.0, 1, 1)), (three_eighths, (0.0, 0.5, 2, 2)), (-1.0, (0.0, 1.0, 2, 2)), (0.5, (0.0, 1.0, 2, 2)), (1.25, (0.25, 1.0, 2, 2)), (2.0, (1.0, 1.0, 2, 2)), (3.5, (2.5, 1.0, 2, 2))] {
         assert!(close(fly(lambda, 1, FILTER_GRID), want), "λ {lambda}: {:?}", fly(lambda, 1, FILTER_GRID));
         assert!(close(fly(lambda, 1, 1), (lambda, 0.0, 1, 1)));
     }
+    // Just past a quarter texel the rays spread over (nearly) nothing: the one ray's image.
+    let g = fly_box_grid(0.25 * 1.001, 1, 0.0, FILTER_GRID);
+    assert!(g.spread < 0.01 && g.lambda == 0.0, "{g:?}");
     // A footprint N times longer than wide: min(N, 2)·G rays along it, G across, at the
-    // level of the surface's N·G lookups (at most 8), major/(N·G), never below 1.
+    // level of the surface's N·G lookups (at most 8), major/(N·G), never below 0; the
+    // spread from major/N.
     assert_eq!(FLY_MAX_ANISOTROPY, 2);
-    for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (1.0, 1.0, 4, 2)), (1.5, 2, (1.0, 0.5, 4, 2))] {
+    for (lambda, n, want) in [(4.5f32, 3u32, (4.5 - 1.0 - 3f32.log2(), 1.0, 4, 2)), (4.5, 5, (1.5, 1.0, 4, 2)), (2.5, 4, (0.0, 1.0, 4, 2)), (1.5, 2, (0.0, 1.0, 4, 2)), (0.75f32.log2(), 2, (0.0, 0.5, 4, 2))] {
         assert!(close(fly(lambda, n, FILTER_GRID), want), "λ {lambda}, N {n}: {:?}", fly(lambda, n, FILTER_GRID));
     }
     // Level 0 is read through a grid of its nearest texels, spread from nothing at a
@@ -228,18 +234,20 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     assert_eq!(mix_at(4.0).fine_taps, (1, 1), "past λ = 1 the coarse grid reads the footprint");
     // The fine grid (`CoarseFilter::Fine`): G = 4 rays per axis through voxels a quarter
     // of a round footprint (two levels finer), N·G along a long one as the surface's
-    // lookups (at most 8), never below level 1.
+    // lookups (at most 8), never below level 0.
     assert_eq!(CoarseFilter::Fine.fly_grid(), FLY_FINE_GRID);
     assert_eq!((CoarseFilter::Box.fly_grid(), CoarseFilter::Bilinear.fly_grid()), (FILTER_GRID, 1));
     assert_eq!(CoarseFilter::Fine.grid(), CoarseFilter::Box.grid(), "the surface's grid is the box filter's");
-    for (lambda, n, want) in [(3.5f32, 1u32, (1.5f32, 1.0f32, 4, 4)), (2.0, 1, (1.0, 1.0, 4, 4)), (1.5, 1, (1.0, 0.5, 4, 4)), (4.5, 3, (1.5, 1.0, 8, 4)), (5.0, 1, (3.0, 1.0, 4, 4))] {
+    for (lambda, n, want) in [(3.5f32, 1u32, (1.5f32, 1.0f32, 4, 4)), (2.0, 1, (0.0, 1.0, 4, 4)), (2.5, 1, (0.5, 1.0, 4, 4)), (1.5, 1, (0.0, 1.0, 4, 4)), (4.5, 3, (1.5, 1.0, 8, 4)), (5.0, 1, (3.0, 1.0, 4, 4))] {
         assert!(close(fly(lambda, n, FLY_FINE_GRID), want), "fine, λ {lambda}, N {n}: {:?}", fly(lambda, n, FLY_FINE_GRID));
     }
     for grid in [FILTER_GRID, FLY_FINE_GRID] {
         for n in [1u32, 2, 3, 8] {
             let step = |l: f32| fly(l + 1e-4, n, grid).0 - fly(l - 1e-4, n, grid).0;
             let spread = |l: f32| fly(l + 1e-4, n, grid).1 - fly(l - 1e-4, n, grid).1;
-            for l in [1.0f32, 2.0, 2.5, 3.0, 4.0] {
+            // A quarter texel across (where the grid grows out of the one ray) at N · ¼.
+            let entry = (0.25 * n as f32).log2();
+            for l in [entry, 1.0f32, 2.0, 2.5, 3.0, 4.0] {
                 assert!(step(l).abs() < 1e-3 && spread(l).abs() < 1e-3, "G {grid}, N {n}: a jump at λ {l}");
             }
         }

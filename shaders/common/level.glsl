@@ -70,10 +70,12 @@ float fine_grid_spread(float minor) {
 
 // The flyaways' box grid for a footprint of `major` level-0 texels, `n` anisotropic
 // lookups: min(N, FLY_MAX_ANISOTROPY) * G rays along the major axis and G across it at
-// the level of N * G lookups, major / min(N * G, 8) (G = 2: the surface's; G = FLY_GRID,
-// the fine filter's 4: a quarter of a round footprint), spread over the fraction
-// `spread` of the footprint (1 past log2 major = 2; from 0 at 1). Twin: fly_box_grid
-// (FlyGrid).
+// the level of N * G lookups, major / min(N * G, 8), down to level 0 (G = 2: the
+// surface's; G = FLY_GRID, the fine filter's 4: a quarter of a round footprint),
+// spread over the fraction `spread` of the footprint: fine_grid_spread(major / N), as
+// level 0's grid of the surface (from 0 at a quarter texel to 1 at half a texel); one
+// ray at that level closer (without a grid, G = 1: one ray at log2 major). Twin:
+// fly_box_grid (FlyGrid).
 struct FlyGrid {
     float level;
     float spread;
@@ -83,12 +85,17 @@ struct FlyGrid {
 
 FlyGrid fly_box_grid(float major, uint n, float bias, uint grid) {
     float lambda = log2(major) + bias;
-    if (grid <= 1u || !(lambda > 1.0)) {
+    if (grid <= 1u) {
         return FlyGrid(lambda, 0.0, 1u, 1u);
     }
-    uint taps = grid_taps(max(n, 1u), grid);
-    float finer = lambda - log2(float(grid)) - log2(float(taps) / float(grid));
-    return FlyGrid(max(finer, 1.0), min(lambda - 1.0, 1.0), clamp(n, 1u, FLY_MAX_ANISOTROPY) * grid, grid);
+    uint m = max(n, 1u);
+    uint taps = grid_taps(m, grid);
+    float finer = max(lambda - log2(float(grid)) - log2(float(taps) / float(grid)), 0.0);
+    float spread = fine_grid_spread(major / float(m));
+    if (!(spread > 0.0)) {
+        return FlyGrid(finer, 0.0, 1u, 1u);
+    }
+    return FlyGrid(finer, spread, min(m, FLY_MAX_ANISOTROPY) * grid, grid);
 }
 
 // The box filter's grid at coarse levels: FILTER_GRID lookups per axis (N * G along the

@@ -192,28 +192,41 @@ pub struct FlyGrid {
 
 /// The flyaways' box grid for a footprint of `major` level-0 texels along its major
 /// axis, `n` anisotropic lookups (the surface's N = ⌈major/minor⌉), `bias` and `grid`
-/// rays per axis. A coarse voxel as wide as the pixel, met by one ray, is a
-/// nearest-texel lookup of its coverage: a pixel turned against the voxels' grid sees
-/// parts of four (baker/PREFILTER_MEASUREMENTS.md, "The box filter"). The rays march the
-/// level of the surface's lookups, major/min(N·G, 8): a grazing pixel's footprint is N
-/// times longer than wide, and voxels as wide as its long side (the isotropic level,
-/// log2 major) blur what the short side resolves (felt at 70°, 16 px: 31.8% → 23.1%;
-/// "Anisotropic flyaway rays"); min(N, [`FLY_MAX_ANISOTROPY`])·G of them run along the
-/// major axis and G across it. Past λ = log2 major = 2 the rays cover the whole
-/// footprint; between 1 and 2 they spread from nothing at level 1, so that the filter is
-/// continuous in distance; below 1 (or without a grid) one ray at λ.
+/// rays per axis. A voxel as wide as the pixel, met by one ray, is a nearest-texel
+/// lookup of its coverage: a pixel turned against the voxels' grid sees parts of four
+/// (baker/PREFILTER_MEASUREMENTS.md, "The box filter"), and a level-0 fibre a voxel
+/// wide, seen at ½–2 texels per pixel, is point-sampled. The rays march the level of
+/// the surface's lookups, major/min(N·G, 8), down to level 0: a grazing pixel's
+/// footprint is N times longer than wide, and voxels as wide as its long side (the
+/// isotropic level, log2 major) blur what the short side resolves (felt at 70°, 16 px:
+/// 31.8% → 23.1%; "Anisotropic flyaway rays"); min(N, [`FLY_MAX_ANISOTROPY`])·G of them
+/// run along the major axis and G across it. They spread as level 0's grid of the
+/// surface does ([`fine_grid_spread`] of major/N, about the minor axis): from nothing
+/// at a quarter texel to the whole footprint at half a texel, so that the filter is
+/// continuous in distance; closer one ray at that level (without a grid, one ray at
+/// λ = log2 major). Until the
+/// distance sweep's felt showed otherwise the grid started at λ = 1 at level 1, one
+/// ray nearer: a coarse flyaway level stood in for level 0's fibres at 1–4 texels per
+/// pixel, and one ray point-sampled them nearer still (felt's steps at ½ / 0.91 / 1.64
+/// / 2.97 texels per pixel: 14.3 / 15.6 / 13.2 / 9.5% → 4.5 / 5.0 / 5.9 / 6.9%;
+/// "Flyaways through a grid from a quarter texel across").
 pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
     let lambda = major.log2() + bias;
-    if grid <= 1 || !(lambda > 1.0) {
+    if grid <= 1 {
         return FlyGrid { lambda, spread: 0.0, taps_major: 1, taps_minor: 1 };
     }
     // The level of N·G lookups along the major axis (at most 8, as the surface's),
     // about the minor axis over G: voxels 1/G of a round footprint (G = 2, the default:
-    // one level finer, the surface grid's level; `FLY_FINE_GRID`: two).
-    let taps = grid_taps(n.max(1), grid);
-    let finer = lambda - (grid as f32).log2() - (taps as f32 / grid as f32).log2();
-    let taps_major = n.clamp(1, FLY_MAX_ANISOTROPY) * grid;
-    FlyGrid { lambda: finer.max(1.0), spread: (lambda - 1.0).min(1.0), taps_major, taps_minor: grid }
+    // one level finer, the surface grid's level; `FLY_FINE_GRID`: two). The one ray
+    // short of a quarter texel marches it too, so that the grid grows out of it.
+    let n = n.max(1);
+    let taps = grid_taps(n, grid);
+    let finer = (lambda - (grid as f32).log2() - (taps as f32 / grid as f32).log2()).max(0.0);
+    let spread = fine_grid_spread(major / n as f32);
+    if !(spread > 0.0) {
+        return FlyGrid { lambda: finer, spread: 0.0, taps_major: 1, taps_minor: 1 };
+    }
+    FlyGrid { lambda: finer, spread, taps_major: n.min(FLY_MAX_ANISOTROPY) * grid, taps_minor: grid }
 }
 
 /// Rays per axis of the flyaways' grid under `CoarseFilter::Fine`: voxels a quarter of
