@@ -203,13 +203,12 @@ pub struct FlyGrid {
 /// run along the major axis and G across it. They spread as level 0's grid of the
 /// surface does ([`fine_grid_spread`] of major/N, about the minor axis): from nothing
 /// at a quarter texel to the whole footprint at half a texel, so that the filter is
-/// continuous in distance; closer one ray at that level (without a grid, one ray at
-/// λ = log2 major). Until the
-/// distance sweep's felt showed otherwise the grid started at λ = 1 at level 1, one
-/// ray nearer: a coarse flyaway level stood in for level 0's fibres at 1–4 texels per
-/// pixel, and one ray point-sampled them nearer still (felt's steps at ½ / 0.91 / 1.64
-/// / 2.97 texels per pixel: 14.3 / 15.6 / 13.2 / 9.5% → 4.5 / 5.0 / 5.9 / 6.9%;
-/// "Flyaways through a grid from a quarter texel across").
+/// continuous in distance; closer, one ray at that level (without a grid, one ray at
+/// λ = log2 major). Until the distance sweep's felt showed otherwise, the grid started
+/// at λ = 1 at level 1, one ray nearer: a coarse flyaway level stood in for level 0's
+/// fibres at 1–4 texels per pixel, and one ray point-sampled them nearer still (felt's
+/// steps at ½ / 0.91 / 1.64 / 2.97 texels per pixel: 14.3 / 15.6 / 13.2 / 9.5% →
+/// 4.5 / 5.0 / 5.9 / 6.9%; "Flyaways through a grid from a quarter texel across").
 pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
     let lambda = major.log2() + bias;
     if grid <= 1 {
