@@ -183,8 +183,8 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                     tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
                 }
             }
-            // Level 0's grid (a footprint past a texel, or blended with level 1), beside the hit (not traced:
-            // Scene::trace_mixed says why).
+            // Level 0's grid (a footprint past a quarter texel, or blended with level 1), each
+            // lookup where its own parallel ray meets the height field (Scene::trace_mixed).
             uint n0 = min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS);
             vec2 fine_xy[MAX_SURFACE_TAPS];
             for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
@@ -192,7 +192,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
             }
             if (mix_.lo == 0u && n0 > 1u) {
                 for (uint k = 0u; k < n0; ++k) {
-                    fine_xy[k] = p.xy + tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k);
+                    fine_xy[k] = tap_surface_point(o, d, tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k), p, floor_level);
                 }
             }
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {

@@ -571,9 +571,13 @@ impl<'a> Scene<'a> {
                 let (n, m) = (mix.taps, mix.taps_minor);
                 let points: Vec<Vec3> = if coarse && n * m > 1 { (0..n * m).map(|k| self.tap_surface_point(ray, tap_offset(mix.axis, n, mix.minor_axis, m, k), ray.at(t), floor)).collect() } else { Vec::new() };
                 let (f0, f1) = mix.fine_taps;
-                // Level 0's grid at the offsets beside the hit: tracing each lookup's own ray (as
-                // the coarse grid does) bought 0–0.4 points more for up to 16 marches.
-                let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| ray.at(t) + tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k).extend(0.0)).collect() } else { Vec::new() };
+                // Level 0's grid, each lookup where its own parallel ray meets the height field
+                // (as the coarse grid's): at ½–2 texels per pixel the one ray's hit jumps
+                // between crest and valley, which the offsets beside it kept (satin's
+                // surface at the sweep's first three steps 8.1 / 9.3 / 11.0% → 5.6 / 6.1 /
+                // 6.8%; twill had gained 0–0.4 points; baker/PREFILTER_MEASUREMENTS.md,
+                // "Level 0's lookups where their rays land").
+                let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| self.tap_surface_point(ray, tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), ray.at(t), floor)).collect() } else { Vec::new() };
                 let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix, if mix.lo == 0 { &fine } else { &points });
                 if mix.weight > 0.0 && mix.hi != mix.lo {
                     let (hi, l) = self.shade_surface(ray, t, mix.hi, &mix, &points);
