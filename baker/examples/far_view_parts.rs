@@ -6,8 +6,12 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `SWEEP=1` the distance sweep alone (`PART=surface` or `PART=flyaways` for one part; `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
-//! nodes' responses at 70°.
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone ( `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
+//! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
+//! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
+//! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
+//! `KMEANS=1,2,… [GROUP_CONES=1] [PLAIN=1]`; baker/PREFILTER_MEASUREMENTS.md, "What the
+//! coarse flyaways get wrong").
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, render};
@@ -64,10 +68,24 @@ fn main() {
         }
         return;
     }
+    if let Ok(polar) = std::env::var("ORACLE") {
+        oracle_images(&model, polar.parse().unwrap());
+        return;
+    }
+    if let Ok(polar) = std::env::var("OPACITY_IMAGES") {
+        opacity_images(&model, polar.parse().unwrap());
+        return;
+    }
     if std::env::var("OPACITY_ONLY").is_ok() {
         for polar in [0.0, 45.0, 70.0] {
             opacity_by_level(&model, polar);
         }
+        return;
+    }
+    if let Ok(part) = std::env::var("PART") {
+        // One part alone, as in the sweep: `PART=surface` or `PART=flyaways`.
+        let one = if part == "surface" { without_flyaways(&model) } else { surface_black(&model) };
+        views(&one, pixels, &format!("{part:<13}"));
         return;
     }
     views(&model, pixels, "as it is     ");
@@ -175,5 +193,369 @@ fn sweep_supersampled(model: &HybridModel) {
             line += &format!("  {ss}x{ss}: chain {:.2}% level0 {:.2}% (chain mean/truth {:.3})", 100.0 * relative_rmse(&chain, &truth).unwrap(), 100.0 * relative_rmse(&l0, &truth).unwrap(), mean(&chain) / mean(&truth));
         }
         println!("{line}");
+    }
+}
+
+/// Per pixel of the 16 px far view at `polar`, each fixed level's mean flyaway opacity
+/// and mean flyaway radiance per unit opacity (the surface black), against level 0's at
+/// 32 × 32 rays per pixel: whether a level's error is *where* its flyaways hide or *what
+/// colour* they are.
+pub fn opacity_images(model: &HybridModel, polar: f32) {
+    use fabric_runtime::cpu::Scene;
+    let dark = surface_black(model);
+    let camera = far_camera(&dark, polar, 16);
+    let light = [far_light()];
+    let options = CpuRenderOptions { periodic: true, ..Default::default() };
+    let scene = Scene::new(&dark, &camera, &light, options).unwrap();
+    let per_pixel = |level: usize, n: u32| -> Vec<(f64, f64)> {
+        let mut out = Vec::new();
+        for py in 0..16 {
+            for px in 0..16 {
+                let (mut o, mut r) = (0.0f64, 0.0f64);
+                for sy in 0..n {
+                    for sx in 0..n {
+                        let ray = camera.ray(px as f32 + (sx as f32 + 0.5) / n as f32, py as f32 + (sy as f32 + 0.5) / n as f32);
+                        let t = scene.trace_ray(&ray, level);
+                        o += t.flyaway_opacity as f64;
+                        r += (t.radiance.x + t.radiance.y + t.radiance.z) as f64 / 3.0;
+                    }
+                }
+                out.push((o / (n * n) as f64, r / (n * n) as f64));
+            }
+        }
+        out
+    };
+    let truth = per_pixel(0, 32);
+    let rel = |a: &[f64], b: &[f64]| (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / b.iter().map(|y| y * y).sum::<f64>()).sqrt();
+    for level in 0..model.levels.len().min(6) {
+        let im = per_pixel(level, 8);
+        let (o, r): (Vec<f64>, Vec<f64>) = im.iter().copied().unzip();
+        let (to, tr): (Vec<f64>, Vec<f64>) = truth.iter().copied().unzip();
+        let c: Vec<f64> = im.iter().map(|(o, r)| r / o.max(1e-6)).collect();
+        let tc: Vec<f64> = truth.iter().map(|(o, r)| r / o.max(1e-6)).collect();
+        // The radiance if each pixel had the truth's opacity and its own colour.
+        let swap: Vec<f64> = c.iter().zip(&to).map(|(c, o)| c * o).collect();
+        let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        println!("  {polar}° level {level}: radiance {:.1}% (mean {:.3}), opacity {:.1}% (mean {:.3}), colour {:.1}% (mean {:.3}), own colour at the truth's opacity {:.1}%", 100.0 * rel(&r, &tr), m(&r) / m(&tr), 100.0 * rel(&o, &to), m(&o) / m(&to), 100.0 * rel(&c, &tc), m(&c) / m(&tc), 100.0 * rel(&swap, &tr));
+    }
+}
+
+/// The 70°-style split of [`opacity_images`] with each coarse node shaded three ways:
+/// as the renderer does (its cone of axes, re-marched here), and as the oracle, the
+/// α-weighted mean response of the level-0 nodes of its cell: whether the node's
+/// shading or where the nodes are is what a level's flyaways get wrong.
+pub fn oracle_images(model: &HybridModel, polar: f32) {
+    use fabric_runtime::brdf::{DiffuseLaw, cloth_frame};
+    use fabric_runtime::cpu::Scene;
+    use fabric_runtime::cpu::flyaways::{FlyawayGrid, visit_flyaways};
+    use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
+    use glam::Vec3;
+    let dark = surface_black(model);
+    let camera = far_camera(&dark, polar, 16);
+    let light = [far_light()];
+    let wi = far_light().sample(Vec3::ZERO).wi;
+    let options = CpuRenderOptions { periodic: true, ..Default::default() };
+    let scene = Scene::new(&dark, &camera, &light, options).unwrap();
+    let wo = -camera.ray(8.0, 8.0).d;
+    let response = |f: &fabric_runtime::hybrid::Flyaways, index: usize| -> f64 {
+        let node = &f.nodes[index];
+        let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
+        let axes = f.node_axes(index);
+        (0..4).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+    };
+    let f0 = model.levels[0].flyaways.as_ref().unwrap();
+    let w0 = model.width();
+    let per_pixel = |level: usize, n: u32, shade: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        let f = model.levels[level].flyaways.as_ref().unwrap();
+        let grid = FlyawayGrid::new(model, level, true);
+        let mut out = Vec::new();
+        for py in 0..16 {
+            for px in 0..16 {
+                let mut r = 0.0f64;
+                for sy in 0..n {
+                    for sx in 0..n {
+                        let ray = camera.ray(px as f32 + (sx as f32 + 0.5) / n as f32, py as f32 + (sy as f32 + 0.5) / n as f32);
+                        let Some(t_top) = scene.enter_top(&ray) else { continue };
+                        let t = scene.trace_ray(&ray, level);
+                        let t_end = t.surface_t.unwrap_or(t_top + model.tile.height_scale / -ray.d.z);
+                        visit_flyaways(f, &grid, &ray, t_top, t_end, 1 << 20, |index, _, _, w| r += w as f64 * shade(index));
+                    }
+                }
+                out.push(r / (n * n) as f64);
+            }
+        }
+        out
+    };
+    let truth = per_pixel(0, 32, &|i| response(f0, i));
+    // How much each level-0 node is seen along this view's rays (its visit weights).
+    let seen = {
+        let grid = FlyawayGrid::new(model, 0, true);
+        let mut seen = vec![0.0f64; f0.nodes.len()];
+        let n = 64u32;
+        for y in 0..16 * n {
+            for x in 0..16 * n {
+                let ray = camera.ray((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
+                let Some(t_top) = scene.enter_top(&ray) else { continue };
+                let t = scene.trace_ray(&ray, 0);
+                let t_end = t.surface_t.unwrap_or(t_top + model.tile.height_scale / -ray.d.z);
+                visit_flyaways(f0, &grid, &ray, t_top, t_end, 1 << 20, |index, _, _, w| seen[index] += w as f64);
+            }
+        }
+        seen
+    };
+    let rel = |a: &[f64], b: &[f64]| (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / b.iter().map(|y| y * y).sum::<f64>()).sqrt();
+    let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    for level in 1..model.levels.len().min(6) {
+        let f = model.levels[level].flyaways.as_ref().unwrap();
+        let lw = model.levels[level].width;
+        let mut cell = std::collections::HashMap::new();
+        for j in 0..model.height_px() {
+            for i in 0..w0 {
+                for (index, node) in f0.list((j * w0 + i) as usize).with_index() {
+                    let e = cell.entry((i >> level, j >> level, node.depth as u32 >> level)).or_insert((0.0f64, 0.0f64));
+                    e.0 += node.alpha() as f64 * response(f0, index);
+                    e.1 += node.alpha() as f64;
+                }
+            }
+        }
+        let mut oracle = vec![0.0f64; f.nodes.len()];
+        for j in 0..model.levels[level].height {
+            for i in 0..lw {
+                for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                    let (s, a) = cell.get(&(i, j, node.depth as u32)).copied().unwrap_or_default();
+                    oracle[index] = s / a.max(1e-12);
+                }
+            }
+        }
+        let own = per_pixel(level, 8, &|i| response(f, i));
+        let orc = per_pixel(level, 8, &|i| oracle[i]);
+        let mut cell = std::collections::HashMap::new();
+        for j in 0..model.height_px() {
+            for i in 0..w0 {
+                for (index, node) in f0.list((j * w0 + i) as usize).with_index() {
+                    let e = cell.entry((i >> level, j >> level, node.depth as u32 >> level)).or_insert((0.0f64, 0.0f64));
+                    e.0 += seen[index] * response(f0, index);
+                    e.1 += seen[index];
+                }
+            }
+        }
+        let mut exposed = oracle.clone();
+        for j in 0..model.levels[level].height {
+            for i in 0..lw {
+                for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                    if let Some(&(s, a)) = cell.get(&(i, j, node.depth as u32)).filter(|e| e.1 > 0.0) {
+                        exposed[index] = s / a;
+                    }
+                }
+            }
+        }
+        let exp = per_pixel(level, 8, &|i| exposed[i]);
+        // Which part of the node's shading is off: its axes (the cone) or its BRDF (the
+        // dominant cluster). V2: the cone with its children's clusters; V3: the children's
+        // axes with the node's cluster.
+        let shade_with = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, axes: &fabric_runtime::brdf::axis_spread::SpreadAxes| -> f64 {
+            let base = table.brdf_in_frame(param, cloth_frame(Vec3::Z, Vec3::X));
+            (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+        };
+        let mut kids: std::collections::HashMap<(u32, u32, u32), Vec<usize>> = std::collections::HashMap::new();
+        // Each level-0 node's weight as the baker counts it (prefilter/flyaways.rs: what a
+        // ray down its column meets of it, under the cell's voxels over it); `PLAIN=1`: α.
+        let mut kid_w = vec![0.0f32; f0.nodes.len()];
+        let s0 = model.voxel_depth(0);
+        for j in 0..model.height_px() {
+            for i in 0..w0 {
+                let surface = model.depth(i, j);
+                let mut over: std::collections::HashMap<u32, f32> = std::collections::HashMap::new();
+                for (index, node) in f0.list((j * w0 + i) as usize).with_index() {
+                    kids.entry((i >> level, j >> level, node.depth as u32 >> level)).or_default().push(index);
+                    let free = ((surface - node.depth as f32 * s0) / s0).clamp(0.0, 1.0);
+                    let a = if free <= 0.0 { 0.0 } else { 1.0 - (1.0 - node.alpha().clamp(0.0, 1.0)).powf(free) };
+                    let t = over.entry(node.depth as u32 >> level).or_insert(1.0);
+                    kid_w[index] = if std::env::var("PLAIN").is_ok() { node.alpha() } else { a * *t };
+                    *t *= 1.0 - a;
+                }
+            }
+        }
+        let (mut v2, mut v3) = (oracle.clone(), oracle.clone());
+        for j in 0..model.levels[level].height {
+            for i in 0..lw {
+                for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                    let Some(ch) = kids.get(&(i, j, node.depth as u32)) else { continue };
+                    let axes = f.node_axes(index);
+                    let (mut a2, mut a3, mut w) = (0.0, 0.0, 0.0);
+                    for &c in ch {
+                        let a = f0.nodes[c].alpha() as f64;
+                        a2 += a * shade_with(&f0.table, f0.nodes[c].param as usize, &axes);
+                        a3 += a * shade_with(&f.table, node.param as usize, &f0.node_axes(c));
+                        w += a;
+                    }
+                    v2[index] = a2 / w;
+                    v3[index] = a3 / w;
+                }
+            }
+        }
+        let i2 = per_pixel(level, 8, &|i| v2[i]);
+        let i3 = per_pixel(level, 8, &|i| v3[i]);
+        if let Ok(grid) = std::env::var("SPLIT") {
+            // The cone's spread shrunk to q of it, each lobe widened by c·(1 − q) of it.
+            for qc in grid.split(';') {
+                let v: Vec<f32> = qc.split(',').map(|x| x.parse().unwrap()).collect();
+                let (q, c) = (v[0], v[1]);
+                let mut split = oracle.clone();
+                for (index, node) in f.nodes.iter().enumerate() {
+                    let Some(rec) = f.spreads.as_ref().map(|s| s[index]) else { continue };
+                    let (l2, l3) = rec.lambdas();
+                    let axes = fabric_runtime::brdf::axis_spread::spread_axes(node.tangent(), rec.roll(), q * l2, q * l3);
+                    let mut base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
+                    let widen = c * (1.0 - q) * (l2 + l3).min(1.0);
+                    for lobe in base.params.lobes[..base.params.lobe_count as usize].iter_mut() {
+                        lobe.beta = (lobe.beta * lobe.beta + widen).sqrt();
+                    }
+                    split[index] = (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
+                }
+                let im = per_pixel(level, 8, &|i| split[i]);
+                println!("      q {q} c {c}: {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
+            }
+        }
+        if std::env::var("QUAD").is_ok() {
+            // Other axis sets with the same tensor: the cube's corners of T^½ (four axes
+            // √λ₁e₁ ± √λ₂e₂ ± √λ₃e₃), and cone and corners together (eight).
+            for set in ["corners", "both"] {
+                let mut v = oracle.clone();
+                for (index, node) in f.nodes.iter().enumerate() {
+                    let Some(rec) = f.spreads.as_ref().map(|s| s[index]) else { continue };
+                    let (l2, l3) = rec.lambdas();
+                    let spread = (l2 + l3).min(1.0);
+                    let e1 = node.tangent();
+                    let (r, qv) = fabric_runtime::brdf::axis_spread::spread_basis(e1);
+                    let e2 = r * rec.roll().cos() + qv * rec.roll().sin();
+                    let e3 = e1.cross(e2);
+                    let (a1, a2, a3) = ((1.0 - spread).max(0.0).sqrt(), l2.sqrt(), l3.sqrt());
+                    let corners = [e1 * a1 + e2 * a2 + e3 * a3, e1 * a1 + e2 * a2 - e3 * a3, e1 * a1 - e2 * a2 + e3 * a3, e1 * a1 - e2 * a2 - e3 * a3];
+                    let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
+                    let resp = |a: Vec3| { let r = texel_response(&in_fiber_frame(base, a.normalize(), wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 };
+                    let c: f64 = corners.iter().map(|&a| 0.25 * resp(a)).sum();
+                    v[index] = if set == "corners" { c } else { 0.5 * c + 0.5 * shade_with(&f.table, node.param as usize, &f.node_axes(index)) };
+                }
+                let im = per_pixel(level, 8, &|i| v[i]);
+                println!("      {set}: {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
+            }
+        }
+        if let Ok(ks) = std::env::var("KMEANS") {
+            // The children's axes in k groups (k-means on axes, |a·c|), each group shaded
+            // with its principal axis: what a bimodal cell (warp and weft) needs and a
+            // tensor cannot say.
+            for k in ks.split(',').map(|x| x.parse::<usize>().unwrap()) {
+                let mut v = oracle.clone();
+                for j in 0..model.levels[level].height {
+                    for i in 0..lw {
+                        for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                            let Some(ch) = kids.get(&(i, j, node.depth as u32)) else { continue };
+                            let ax: Vec<(Vec3, f32)> = ch.iter().map(|&c| (f0.nodes[c].tangent().normalize(), kid_w[c])).filter(|x| x.1 > 0.0).collect();
+                            if ax.is_empty() { continue; }
+                            let mut centres = vec![node.tangent().normalize()];
+                            while centres.len() < k.min(ax.len()) {
+                                let far = ax.iter().min_by(|a, b| { let s = |x: &Vec3| centres.iter().map(|c| c.dot(*x).abs()).fold(0.0f32, f32::max); s(&a.0).partial_cmp(&s(&b.0)).unwrap() }).unwrap().0;
+                                centres.push(far);
+                            }
+                            let mut weights = vec![0.0f32; centres.len()];
+                            for _ in 0..8 {
+                                let mut tensors = vec![glam::Mat3::ZERO; centres.len()];
+                                weights.iter_mut().for_each(|w| *w = 0.0);
+                                for (a, w) in &ax {
+                                    let best = (0..centres.len()).max_by(|&x, &y| centres[x].dot(*a).abs().partial_cmp(&centres[y].dot(*a).abs()).unwrap()).unwrap();
+                                    tensors[best] += glam::Mat3::from_cols(*a * a.x, *a * a.y, *a * a.z) * *w;
+                                    weights[best] += *w;
+                                }
+                                for c in 0..centres.len() {
+                                    if weights[c] > 0.0 {
+                                        if let Some(a) = fabric_baker::geometry::tangents::principal_axis(tensors[c]) { centres[c] = a; }
+                                    }
+                                }
+                            }
+                            let total: f32 = weights.iter().sum();
+                            let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
+                            if std::env::var("GROUP_CONES").is_ok() {
+                                // Each group as the cone of its own tensor.
+                                let mut tensors = vec![glam::Mat3::ZERO; centres.len()];
+                                for (a, w) in &ax {
+                                    let best = (0..centres.len()).max_by(|&x, &y| centres[x].dot(*a).abs().partial_cmp(&centres[y].dot(*a).abs()).unwrap()).unwrap();
+                                    tensors[best] += glam::Mat3::from_cols(*a * a.x, *a * a.y, *a * a.z) * *w;
+                                }
+                                let mut sum = 0.0f64;
+                                for (c, t) in tensors.iter().enumerate() {
+                                    if weights[c] <= 0.0 { continue; }
+                                    let t = *t * (1.0 / weights[c]);
+                                    let e1 = centres[c];
+                                    let (r, q) = fabric_runtime::brdf::axis_spread::spread_basis(e1);
+                                    let (m00, m01, m11) = (r.dot(t * r), r.dot(t * q), q.dot(t * q));
+                                    let theta = 0.5 * (2.0 * m01).atan2(m00 - m11);
+                                    let half = ((m00 - m11) * (m00 - m11) * 0.25 + m01 * m01).sqrt();
+                                    let (l2, l3) = ((0.5 * (m00 + m11) + half).max(0.0), (0.5 * (m00 + m11) - half).max(0.0));
+                                    let axes = fabric_runtime::brdf::axis_spread::spread_axes(e1, theta, l2, l3);
+                                    sum += (weights[c] / total) as f64 * (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum::<f64>();
+                                }
+                                v[index] = sum;
+                                continue;
+                            }
+                            v[index] = centres.iter().zip(&weights).map(|(c, w)| (*w / total) as f64 * { let r = texel_response(&in_fiber_frame(base, *c, wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
+                        }
+                    }
+                }
+                let im = per_pixel(level, 8, &|i| v[i]);
+                println!("      {k} axis groups: {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
+            }
+        }
+        if std::env::var("CHOOSE").is_ok() {
+            // Per node, the cone or the three eigen-axes weighted by λ (the same tensor),
+            // whichever is nearer the children's mean response over random direction pairs.
+            let pairs: Vec<(Vec3, Vec3)> = (0..64u32).map(|k| {
+                let h = |x: u32| ((x.wrapping_mul(2654435761) ^ (x >> 13)).wrapping_mul(2246822519) >> 8) as f32 / (1u32 << 24) as f32;
+                let d = |a: f32, b: f32| { let z = a.max(0.05); let r = (1.0 - z * z).sqrt(); Vec3::new(r * (6.2831853 * b).cos(), r * (6.2831853 * b).sin(), z) };
+                (d(h(4 * k), h(4 * k + 1)), d(h(4 * k + 2), h(4 * k + 3)))
+            }).collect();
+            let resp_at = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, a: Vec3, wi: Vec3, wo: Vec3| -> f64 {
+                let base = table.brdf_in_frame(param, cloth_frame(Vec3::Z, Vec3::X));
+                let r = texel_response(&in_fiber_frame(base, a, wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert);
+                (r.x + r.y + r.z) as f64 / 3.0
+            };
+            let mut v = oracle.clone();
+            let (mut chose_eigen, mut n) = (0, 0);
+            for j in 0..model.levels[level].height {
+                for i in 0..lw {
+                    for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                        let Some(ch) = kids.get(&(i, j, node.depth as u32)) else { continue };
+                        let Some(rec) = f.spreads.as_ref().map(|s| s[index]) else { continue };
+                        let (l2, l3) = rec.lambdas();
+                        let e1 = node.tangent();
+                        let (r, qv) = fabric_runtime::brdf::axis_spread::spread_basis(e1);
+                        let e2 = r * rec.roll().cos() + qv * rec.roll().sin();
+                        let e3 = e1.cross(e2);
+                        let eigen = [(e1, 1.0 - l2 - l3), (e2, l2), (e3, l3)];
+                        let cone = f.node_axes(index);
+                        let (mut err_cone, mut err_eigen) = (0.0, 0.0);
+                        for &(pi, po) in &pairs {
+                            let w: f64 = ch.iter().map(|&c| f0.nodes[c].alpha() as f64).sum();
+                            let truth: f64 = ch.iter().map(|&c| f0.nodes[c].alpha() as f64 * resp_at(&f0.table, f0.nodes[c].param as usize, f0.nodes[c].tangent(), pi, po)).sum::<f64>() / w;
+                            let c: f64 = (0..4).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], pi, po)).sum();
+                            let e: f64 = eigen.iter().filter(|x| x.1 > 0.0).map(|&(a, l)| l as f64 * resp_at(&f.table, node.param as usize, a, pi, po)).sum();
+                            err_cone += (c - truth).powi(2);
+                            err_eigen += (e - truth).powi(2);
+                        }
+                        n += 1;
+                        v[index] = if err_eigen < err_cone {
+                            chose_eigen += 1;
+                            eigen.iter().filter(|x| x.1 > 0.0).map(|&(a, l)| l as f64 * resp_at(&f.table, node.param as usize, a, wi, wo)).sum()
+                        } else {
+                            (0..4).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], wi, wo)).sum()
+                        };
+                    }
+                }
+            }
+            let im = per_pixel(level, 8, &|i| v[i]);
+            println!("      cone or eigen-axes per node ({chose_eigen} of {n} eigen): {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
+        }
+        println!("      cone with the children's clusters {:.1}% (mean {:.3}); children's axes with the node's cluster {:.1}% (mean {:.3})", 100.0 * rel(&i2, &truth), m(&i2) / m(&truth), 100.0 * rel(&i3, &truth), m(&i3) / m(&truth));
+        println!("  {polar}° level {level}: as shaded {:.1}% (mean {:.3}), oracle node colour {:.1}% (mean {:.3}), as seen at this view {:.1}% (mean {:.3})", 100.0 * rel(&own, &truth), m(&own) / m(&truth), 100.0 * rel(&orc, &truth), m(&orc) / m(&truth), 100.0 * rel(&exp, &truth), m(&exp) / m(&truth));
     }
 }

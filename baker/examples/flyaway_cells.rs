@@ -33,6 +33,7 @@ fn main() {
         let Some(f) = &model.levels[level].flyaways else { continue };
         let lw = model.levels[level].width;
         let (mut fine, mut coarse, mut fine_alpha, mut coarse_alpha) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut fine_w, mut coarse_w) = (0.0f64, 0.0f64);
         let mut per_cell = std::collections::BTreeMap::new();
         for j in 0..model.height_px() {
             for i in 0..w0 {
@@ -72,6 +73,8 @@ fn main() {
                     }
                     fine += sf / sa.max(1e-9);
                     coarse += c;
+                    fine_w += node.alpha() as f64 * sf / sa.max(1e-9);
+                    coarse_w += node.alpha() as f64 * c;
                     fine_alpha += sa;
                     coarse_alpha += node.alpha() as f64;
                     if sf > 0.0 {
@@ -105,6 +108,6 @@ fn main() {
         println!("  level {level}: mean free fraction {:.3}, {} of {} nodes reach below the surface", free / count as f64, straddle, count);
         ratios.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let q = |p: f64| ratios.get(((ratios.len() as f64 - 1.0) * p) as usize).copied().unwrap_or(f64::NAN);
-        println!("level {level}: {} nodes; Σ coarse response / Σ cells' mean fine response {:.3}; per node ratio quartiles {:.2} {:.2} {:.2}; Σα coarse {:.0} fine {:.0}", f.nodes.len(), coarse / fine, q(0.25), q(0.5), q(0.75), coarse_alpha, fine_alpha);
+        println!("level {level}: {} nodes; Σ coarse response / Σ cells' mean fine response {:.3}; α-weighted {:.3}; per node ratio quartiles {:.2} {:.2} {:.2}; Σα coarse {:.0} fine {:.0}", f.nodes.len(), coarse / fine, coarse_w / fine_w, q(0.25), q(0.5), q(0.75), coarse_alpha, fine_alpha);
     }
 }
