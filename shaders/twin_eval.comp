@@ -92,13 +92,14 @@ void main() {
         o.x = vec4(float(ij.x), float(ij.y), w, 0.0);
         o.y = vec4(float(t.x), float(t.y), 0.0, 0.0);
     } else if (e.kind == 8u) {
-        // axis_spread.glsl: a node's axes (u.x its tangent, u.y the record; u.z = 0: axes
-        // 0 and 1, else 2 and 3), the weights in z
-        SpreadAxes s = packed_spread_axes(octahedral_decode(e.u.x), e.u.y);
-        uint first = e.u.z == 0u ? 0u : 2u;
+        // axis_spread.glsl: a node's axes (u.x its tangent, u.y the record, u.w its axis
+        // group; u.z = h: axes 2h and 2h + 1), the weights of their group of four in z
+        SpreadAxes s = packed_grouped_axes(octahedral_decode(e.u.x), e.u.y, e.u.w);
+        uint first = 2u * min(e.u.z, 3u);
+        uint group = first >= 4u ? 4u : 0u;
         o.x = vec4(s.axes[first], 0.0);
         o.y = vec4(s.axes[first + 1u], 0.0);
-        o.z = s.weights;
+        o.z = vec4(s.weights[group], s.weights[group + 1u], s.weights[group + 2u], s.weights[group + 3u]);
     } else if (e.kind == 7u) {
         // shading.glsl and flyaways.glsl scalars
         vec3 n = normalize(vec3(e.a.y, e.b.x, 1.0));

@@ -261,7 +261,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
         let node = &f.nodes[index];
         let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
         let axes = f.node_axes(index);
-        (0..4).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+        (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
     };
     let f0 = model.levels[0].flyaways.as_ref().unwrap();
     let w0 = model.width();
@@ -355,7 +355,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
         // axes with the node's cluster.
         let shade_with = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, axes: &fabric_runtime::brdf::axis_spread::SpreadAxes| -> f64 {
             let base = table.brdf_in_frame(param, cloth_frame(Vec3::Z, Vec3::X));
-            (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+            (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
         };
         let mut kids: std::collections::HashMap<(u32, u32, u32), Vec<usize>> = std::collections::HashMap::new();
         // Each level-0 node's weight as the baker counts it (prefilter/flyaways.rs: what a
@@ -411,7 +411,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                     for lobe in base.params.lobes[..base.params.lobe_count as usize].iter_mut() {
                         lobe.beta = (lobe.beta * lobe.beta + widen).sqrt();
                     }
-                    split[index] = (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
+                    split[index] = (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
                 }
                 let im = per_pixel(level, 8, &|i| split[i]);
                 println!("      q {q} c {c}: {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
@@ -492,8 +492,15 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                                     let theta = 0.5 * (2.0 * m01).atan2(m00 - m11);
                                     let half = ((m00 - m11) * (m00 - m11) * 0.25 + m01 * m01).sqrt();
                                     let (l2, l3) = ((0.5 * (m00 + m11) + half).max(0.0), (0.5 * (m00 + m11) - half).max(0.0));
+                                    let (e1, l2, l3) = if c > 0 && std::env::var("B_CIRC").is_ok() {
+                                        // The second group as 4 bytes would keep it: its axis at 8 bits per
+                                        // octahedral coordinate, a circular cone.
+                                        let o = fabric_runtime::hybrid::packing::octahedral_encode(e1);
+                                        let dec = fabric_runtime::hybrid::packing::octahedral_decode([(o[0] & 0xff00) | 0x80, (o[1] & 0xff00) | 0x80]);
+                                        (dec, 0.5 * (l2 + l3), 0.5 * (l2 + l3))
+                                    } else { (e1, l2, l3) };
                                     let axes = fabric_runtime::brdf::axis_spread::spread_axes(e1, theta, l2, l3);
-                                    sum += (weights[c] / total) as f64 * (0..4).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum::<f64>();
+                                    sum += (weights[c] / total) as f64 * (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum::<f64>();
                                 }
                                 v[index] = sum;
                                 continue;
@@ -537,7 +544,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                         for &(pi, po) in &pairs {
                             let w: f64 = ch.iter().map(|&c| f0.nodes[c].alpha() as f64).sum();
                             let truth: f64 = ch.iter().map(|&c| f0.nodes[c].alpha() as f64 * resp_at(&f0.table, f0.nodes[c].param as usize, f0.nodes[c].tangent(), pi, po)).sum::<f64>() / w;
-                            let c: f64 = (0..4).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], pi, po)).sum();
+                            let c: f64 = (0..8).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], pi, po)).sum();
                             let e: f64 = eigen.iter().filter(|x| x.1 > 0.0).map(|&(a, l)| l as f64 * resp_at(&f.table, node.param as usize, a, pi, po)).sum();
                             err_cone += (c - truth).powi(2);
                             err_eigen += (e - truth).powi(2);
@@ -547,7 +554,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                             chose_eigen += 1;
                             eigen.iter().filter(|x| x.1 > 0.0).map(|&(a, l)| l as f64 * resp_at(&f.table, node.param as usize, a, wi, wo)).sum()
                         } else {
-                            (0..4).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], wi, wo)).sum()
+                            (0..8).filter(|&k| cone.weights[k] > 0.0).map(|k| cone.weights[k] as f64 * resp_at(&f.table, node.param as usize, cone.axes[k], wi, wo)).sum()
                         };
                     }
                 }

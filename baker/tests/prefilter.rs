@@ -183,7 +183,8 @@ fn coarse_flyaways_count_what_a_level_0_ray_meets() {
     // fibre alone, one axis, no spread.
     let node = f.heads[0] as usize;
     let axes = f.node_axes(node);
-    assert_eq!(axes.weights, [1.0, 0.0, 0.0, 0.0], "{axes:?}");
+    assert_eq!(axes.weighted().collect::<Vec<_>>().len(), 1, "{axes:?}");
+    assert_eq!(axes.weights[0], 1.0, "{axes:?}");
     assert!(axes.axes[0].dot(Vec3::X).abs() > 0.999, "{axes:?}");
     // It hides a quarter of the view, as level 0's column does.
     assert!(f.nodes[node].alpha() > 0.2, "{}", f.nodes[node].alpha());
@@ -210,13 +211,43 @@ fn coarse_flyaways_store_their_fibres_spread_and_one_fibre_has_none() {
         assert!(axes.axes.iter().zip(axes.weights).any(|(x, w)| w > 0.45 && x.dot(t).abs() > 0.995), "{t} not among {axes:?}");
     }
     let one = f.heads[3] as usize;
-    assert_eq!(f.node_axes(one).weights, [1.0, 0.0, 0.0, 0.0]);
+    assert_eq!(f.node_axes(one).weighted().map(|(_, w)| w).collect::<Vec<_>>(), vec![1.0]);
     // Without spreads: one axis per node, and the lobes of the two-fibre voxel widened.
     let (plain, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_spread: false, ..Default::default() }, &NoProgress).unwrap();
     let g = plain.levels[1].flyaways.as_ref().unwrap();
     assert!(g.spreads.is_none());
     let beta = |k: u32| g.table.brdf_in_frame(k as usize, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)).params.lobes[0].beta;
     assert!(beta(g.nodes[g.heads[0] as usize].param) > beta(g.nodes[one].param) + 0.05);
+}
+
+#[test]
+fn warp_and_weft_in_one_coarse_voxel_keep_their_axes_in_two_groups() {
+    // One coarse voxel of level 1: two fibres along x (warp) and two along y (weft). Its
+    // tensor is diag(½, ½, 0): one cone would shade it along the diagonals.
+    let mut m = uniform_model(4, 4, 1, flat_tile(8), |_, _| 0.1, &plain_params(), Vec3::Z, Vec3::X).unwrap();
+    let v = |i, j, t: Vec3| (i, j, FlyawayInput { depth: 0, alpha: 1.0, tangent: t, param: 0 });
+    add_flyaways(&mut m, 0, &[v(0, 0, Vec3::X), v(1, 1, Vec3::X), v(1, 0, Vec3::Y), v(0, 1, Vec3::Y)], &plain_params()).unwrap();
+    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
+    let f = out.levels[1].flyaways.as_ref().unwrap();
+    let groups = f.groups.as_ref().expect("axis groups");
+    assert_eq!(groups.len(), f.nodes.len());
+    let node = f.heads[0] as usize;
+    let axes: Vec<(Vec3, f32)> = f.node_axes(node).weighted().collect();
+    assert_eq!(axes.len(), 2, "{axes:?}");
+    for t in [Vec3::X, Vec3::Y] {
+        assert!(axes.iter().any(|(a, w)| (w - 0.5).abs() < 0.01 && a.dot(t).abs() > 0.999), "{t} not among {axes:?}");
+    }
+    // The file keeps them (format 1.8's FLYAWAY_GROUP).
+    let bytes = fabric_runtime::hybrid::format::to_bytes(&out).unwrap();
+    let back = fabric_runtime::hybrid::format::read(&bytes).unwrap();
+    assert_eq!(back.levels[1].flyaways.as_ref().unwrap().groups.as_ref(), Some(groups));
+    // Without groups: one cone, its axes on the diagonals.
+    let (one, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_groups: false, ..Default::default() }, &NoProgress).unwrap();
+    let g = one.levels[1].flyaways.as_ref().unwrap();
+    assert!(g.groups.is_none());
+    for (a, _) in g.node_axes(g.heads[0] as usize).weighted() {
+        assert!((a.x.abs() - 0.5f32.sqrt()).abs() < 0.02 && (a.y.abs() - 0.5f32.sqrt()).abs() < 0.02, "{a}");
+    }
 }
 
 #[test]

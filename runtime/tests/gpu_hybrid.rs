@@ -587,13 +587,21 @@ fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
         Case { name: "spread level 1, 45°, edited", camera: Camera::orbit_orthographic(45.0, 200.0, centre, 40.0, 1.5, 32, 32), options: CpuRenderOptions { level: LevelChoice::Fixed(1), edits, ..opts.clone() } },
         Case { name: "spread level 2, under the sky", camera: Camera::orbit_orthographic(35.0, 300.0, centre, 40.0, 2.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), env: Some(sky_light()), ..opts.clone() } },
     ];
+    // A second group of axes per node (format 1.8).
+    let mut grouped = spread.clone();
+    examples::add_axis_groups(&mut grouped);
     for case in &cases {
         assert_twins_agree(case.name, &compare(&pass, &spread, &lights, case));
-        // The spreads matter on these views (so the agreement above is about them).
+        assert_twins_agree(&format!("{}, two groups", case.name), &compare(&pass, &grouped, &lights, case));
+        // The spreads and the groups matter on these views (so the agreement above is
+        // about them).
         let single = render(&plain, &case.camera, &lights, &case.options).unwrap();
         let with = render(&spread, &case.camera, &lights, &case.options).unwrap();
         let moved = relative_rmse(&with, &single).unwrap();
         assert!(moved > 0.02, "{}: the spreads moved the image by only {moved}", case.name);
+        let two = render(&grouped, &case.camera, &lights, &case.options).unwrap();
+        let moved = relative_rmse(&two, &with).unwrap();
+        assert!(moved > 0.02, "{}: the groups moved the image by only {moved}", case.name);
     }
     // Level 0 has no spreads: up close nothing changes on either backend.
     let near = Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 48, height: 40 };

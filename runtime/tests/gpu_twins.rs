@@ -168,7 +168,9 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                     // zero spreads (one axis) and axes on the z = 0 seam of the basis.
                     let t = if k % 11 == 0 { octahedral_encode(Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)) } else { [rng.next_u64() as u16, rng.next_u64() as u16] };
                     let record = if k % 13 == 0 { rng.next_u64() as u32 & 0xffff } else { rng.next_u64() as u32 };
-                    e.u = [t[0] as u32 | (t[1] as u32) << 16, record, (k % 2) as u32, 0];
+                    // Any second group (format 1.8), none (share 0) one time in three.
+                    let group = if k % 3 == 0 { rng.next_u64() as u32 & 0xff00_ffff } else { rng.next_u64() as u32 };
+                    e.u = [t[0] as u32 | (t[1] as u32) << 16, record, (k % 4) as u32, group];
                 }
                 _ => {
                     e.a = v4(rng.unit_vector(), 0.0);
@@ -262,10 +264,12 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             8 => {
                 let node = fabric_runtime::hybrid::FlyawayNode { tangent: [e.u[0] as u16, (e.u[0] >> 16) as u16], ..Default::default() };
                 let record: PackedAxisSpread = bytemuck::cast([e.u[1], 0u32]);
-                let s = record.axes(&node);
-                let first = if e.u[2] == 0 { 0 } else { 2 };
+                let group: fabric_runtime::hybrid::PackedAxisGroup = bytemuck::cast(e.u[3]);
+                let s = group.axes(record.axes(&node));
+                let first = 2 * e.u[2].min(3) as usize;
+                let half = if first >= 4 { 4 } else { 0 };
                 let axes = (s.axes[first] - gx.truncate()).abs().max_element().max((s.axes[first + 1] - gy.truncate()).abs().max_element());
-                axes.max((Vec4::from(s.weights) - gz).abs().max_element())
+                axes.max((Vec4::from_slice(&s.weights[half..half + 4]) - gz).abs().max_element())
             }
             _ => {
                 let vf = volume_factor(Vec4::from(e.a).truncate(), Vec4::from(e.b).truncate());

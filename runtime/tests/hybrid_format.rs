@@ -335,6 +335,45 @@ fn flyaway_spreads_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     assert!(matches!(err(&parts.assemble()), FormatError::Invalid(ModelError::FlyawayNode { level: 1, node: 0, why }) if why.contains("reserved")));
 }
 
+/// The spread sample with a second group of axes per coarse node (format 1.8).
+fn group_sample() -> HybridModel {
+    let mut m = spread_sample();
+    examples::add_axis_groups(&mut m);
+    m.validate().expect("the group sample is valid");
+    m
+}
+
+#[test]
+fn flyaway_groups_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = group_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    // Optional: a 1.7 reader skips the section and shades each node as its first group.
+    let mut parts = Parts::of(&bytes);
+    let mut skipped = 0;
+    for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawayGroup as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        assert_eq!(data.len() % 4, 0);
+        e.kind = 4003;
+        skipped += 1;
+    }
+    assert!(skipped > 0);
+    assert_eq!(format::read(&parts.assemble()).unwrap(), spread_sample());
+}
+
+#[test]
+fn flyaway_group_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("one record short", |p| { let t = p.find(SectionKind::FlyawayGroup, 1); t.truncate(t.len() - 4) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway axis groups", level: 1, .. }))),
+        ("one record too many", |p| p.find(SectionKind::FlyawayGroup, 1).extend_from_slice(&[0; 4]), |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "flyaway axis groups", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::FlyawayGroup, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_GROUP")),
+        ("without spread records", |p| p.sections.retain(|(e, _)| !(e.kind == SectionKind::FlyawaySpreadCompact as u32 && e.level == 1)), |e| matches!(e, FormatError::Invalid(ModelError::Length { level: 1, got: 0, .. }))),
+        ("on a level without flyaways", |p| p.entry(SectionKind::FlyawayGroup, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
+    ];
+    run_catalogue(&format::to_bytes(&group_sample()).unwrap(), cases);
+}
+
 /// Rewrites the compact spread sections as 1.5's wide ones (8 bytes, reserved 0).
 fn widen_spreads(parts: &mut Parts) {
     for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpreadCompact as u32) {
@@ -604,7 +643,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
         m

@@ -124,14 +124,15 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                 uint node_index = node;
                 uvec4 nd = fly_nodes[l.fly_node_base + node];
                 node = nd.x;
-                // A coarse node's record: the roll and weights (word 0), the depth range
-                // its fibres occupy (word 1; the whole voxel without a record).
+                // A coarse node's record (three words from `spread`): the roll and
+                // weights (word 0), the depth range its fibres occupy (word 1; the whole
+                // voxel without a record), its second axis group (word 2).
                 uint spread = NO_NODE;
                 float z0 = 0.0;
                 float z1 = 1.0;
                 if (l.spread_base != NO_NODE) {
-                    spread = fly_spread_word(l.spread_base + 2u * node_index);
-                    uint slab = fly_spread_word(l.spread_base + 2u * node_index + 1u);
+                    spread = l.spread_base + 3u * node_index;
+                    uint slab = fly_spread_word(spread + 1u);
                     z0 = float(slab & 0xffu) * (1.0 / 255.0);
                     z1 = float((slab >> 8) & 0xffu) * (1.0 / 255.0);
                 }

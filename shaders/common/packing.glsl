@@ -1,7 +1,7 @@
 // packing.glsl — decoding the packed scalars and directions of the hybrid model.
 //
 // Twin: runtime/src/hybrid/packing.rs (the decoding half: f16_value, unorm16_value,
-// snorm16_value, octahedral_decode, tangent_angle_decode) and decode_frame of
+// snorm16_value, snorm8_value, octahedral_decode, octahedral_decode8, tangent_angle_decode) and decode_frame of
 // runtime/src/hybrid/lobe.rs. Same names, same arithmetic. Codes arrive as 16-bit fields
 // of 32-bit words (little-endian: the low half is the first field).
 #ifndef PACKING_GLSL
@@ -31,10 +31,14 @@ float packing_sign_not_zero(float x) {
     return x >= 0.0 ? 1.0 : -1.0;
 }
 
-// Unit direction of an octahedral code: u in the low half of `word`, v in the high half.
-vec3 octahedral_decode(uint word) {
-    float u = snorm16_value(word);
-    float v = snorm16_value(word >> 16);
+// snorm8 byte k (0 = lowest) of `bits` -> [-1, 1] (Vulkan's SNORM conversion).
+float snorm8_value(uint bits, uint k) {
+    int c = int(bits << (24u - 8u * k)) >> 24;
+    return max(float(c) * (1.0 / 127.0), -1.0);
+}
+
+// Unit direction of octahedral coordinates (u, v) in [-1, 1]^2.
+vec3 octahedral_from_uv(float u, float v) {
     float z = 1.0 - abs(u) - abs(v);
     float x = u;
     float y = v;
@@ -44,6 +48,16 @@ vec3 octahedral_decode(uint word) {
     }
     vec3 w = vec3(x, y, z);
     return w * (1.0 / length(w));
+}
+
+// Unit direction of an octahedral code: u in the low half of `word`, v in the high half.
+vec3 octahedral_decode(uint word) {
+    return octahedral_from_uv(snorm16_value(word), snorm16_value(word >> 16));
+}
+
+// Unit direction of an 8-bit octahedral code: u in byte 0 of `word`, v in byte 1.
+vec3 octahedral_decode8(uint word) {
+    return octahedral_from_uv(snorm8_value(word, 0u), snorm8_value(word, 1u));
 }
 
 // The unit tangent of a tangent-angle code around unit normal n.

@@ -175,20 +175,15 @@ vec3 light_at(uint k, vec3 p, out vec3 wi, out float dist) {
 }
 
 // Radiance leaving p toward wo from flyaway node (param, fiber) of `level`: its one axis
-// where `spread` is NO_NODE, else the mean over the node's spread axes (axis_spread.glsl;
-// unused axes weigh 0), each light's visibility once; edited without rotation, lit by
-// the environment with the flyaway budget. Twin: the node closure of
+// where `spread` is NO_NODE, else the mean over the node's spread axes, one or two groups
+// (axis_spread.glsl; `spread` the first word of its three in binding 6; unused axes
+// weigh 0), each light's visibility once; edited without rotation, lit by the
+// environment with the flyaway budget. Twin: the node closure of
 // Scene::march_level_flyaways (shade, or shade_blend over the axes).
 vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 wo, inout uint limited) {
-    SpreadAxes s;
-    if (spread == NO_NODE) {
-        s.axes[0] = fiber;
-        s.axes[1] = vec3(0.0);
-        s.axes[2] = vec3(0.0);
-        s.axes[3] = vec3(0.0);
-        s.weights = vec4(1.0, 0.0, 0.0, 0.0);
-    } else {
-        s = packed_spread_axes(fiber, spread);
+    SpreadAxes s = single_axis(fiber);
+    if (spread != NO_NODE) {
+        s = packed_grouped_axes(fiber, fly_spread_word(spread), fly_spread_word(spread + 2u));
     }
     uint reading = model_reading();
     Edit e = hit_edit(p);
@@ -205,7 +200,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
             continue;
         }
         vec3 response = vec3(0.0);
-        for (int a = 0; a < 4; ++a) {
+        for (int a = 0; a < MAX_SPREAD_AXES; ++a) {
             if (s.weights[a] > 0.0) {
                 response += s.weights[a] * texel_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wi, wo, reading, CLOTH_DIFFUSE_LAMBERT);
             }
@@ -217,7 +212,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
     }
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
-        for (int a = 0; a < 4; ++a) {
+        for (int a = 0; a < MAX_SPREAD_AXES; ++a) {
             if (s.weights[a] > 0.0) {
                 radiance += s.weights[a] * texel_env_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wo, reading, false, CLOTH_DIFFUSE_LAMBERT, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);
             }

@@ -50,7 +50,7 @@ use glam::{Mat3, Vec3};
 use fabric_runtime::brdf::{BETA_MAX, ClothLobe, ClothParams};
 use fabric_runtime::brdf::axis_spread::spread_basis;
 use fabric_runtime::hybrid::packing::{octahedral_decode, octahedral_encode};
-use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError, PackedAxisSpread, level_dims};
+use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Flyaways, HybridModel, ModelError, PackedAxisGroup, PackedAxisSpread, level_dims};
 
 use crate::geometry::tangents::principal_axis;
 
@@ -83,13 +83,15 @@ struct Cell {
     by_param: Vec<(u32, f32)>,
     /// The level-0 layers its voxels occupy, [first, last].
     layers: (u32, u32),
+    /// Each voxel's unit axis and weight (its share of `tensor`), for the two groups.
+    axes: Vec<(Vec3, f32)>,
 }
 
 // Not derived: glam's Mat3::default() is the identity, which would add 1/Σα to every
 // eigenvalue of the axis tensor.
 impl Default for Cell {
     fn default() -> Cell {
-        Cell { alpha: 0.0, seen: 0.0, columns: BTreeMap::new(), tensor: Mat3::ZERO, by_param: Vec::new(), layers: (u32::MAX, 0) }
+        Cell { alpha: 0.0, seen: 0.0, columns: BTreeMap::new(), tensor: Mat3::ZERO, by_param: Vec::new(), layers: (u32::MAX, 0), axes: Vec::new() }
     }
 }
 
@@ -105,6 +107,9 @@ impl Cell {
         self.seen += seen;
         let t = t.normalize_or_zero();
         self.tensor += Mat3::from_cols(t * t.x, t * t.y, t * t.z) * seen;
+        if seen > 0.0 && t != Vec3::ZERO {
+            self.axes.push((t, seen));
+        }
         match self.by_param.iter_mut().find(|s| s.0 == param) {
             Some(slot) => slot.1 += seen,
             None => self.by_param.push((param, seen)),
@@ -123,8 +128,9 @@ fn widened(base: &ClothParams, bin: u32) -> ClothParams {
 }
 
 /// The flyaway lists of level `level` ≥ 1, merged from level 0's, with spread records
-/// where `spread` (else widened lobes); `None` when level 0 has none.
-pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spread: bool) -> Result<Option<Flyaways>, ModelError> {
+/// where `spread` (else widened lobes), and each node's fibres in two groups of axes
+/// where `groups` too (format 1.8); `None` when level 0 has none.
+pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spread: bool, groups: bool) -> Result<Option<Flyaways>, ModelError> {
     let Some(f0) = model.levels[0].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) else {
         return Ok(None);
     };
@@ -160,7 +166,7 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
     let mut table = BrdfTable::new();
     let mut entries: BTreeMap<(u32, u32), u32> = BTreeMap::new();
     let mut columns: BTreeMap<(u32, u32), Vec<FlyawayInput>> = BTreeMap::new();
-    let mut spreads: BTreeMap<(u32, u32, u16), PackedAxisSpread> = BTreeMap::new();
+    let mut spreads: BTreeMap<(u32, u32, u16), (PackedAxisSpread, PackedAxisGroup)> = BTreeMap::new();
     for (&(j, i, k), cell) in &cells {
         let alpha = match coverage {
             Coverage::Volume => cell.alpha / (extent(i, w0) * extent(j, h0) * extent(k, depth0)) as f32,
@@ -173,7 +179,16 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
         let slab = if spread && projected { ((cell.layers.0 as f32 - (k << level) as f32) / span, (cell.layers.1 as f32 + 1.0 - (k << level) as f32) / span) } else { (0.0, 1.0) };
         let slab = (((slab.0 * 255.0).floor() / 255.0).max(0.0), ((slab.1 * 255.0).ceil() / 255.0).min(1.0));
         let alpha = if projected { free_space_alpha(alpha, free_fraction(model, level, i, j, k, slab)) } else { alpha }.clamp(2.0 / 65535.0, 1.0);
-        let tensor = cell.tensor * (1.0 / cell.seen.max(1e-30));
+        let mut tensor = cell.tensor * (1.0 / cell.seen.max(1e-30));
+        // Two groups where the fibres split (warp and weft): the node's axis and record
+        // are the larger group's, the other is its second group.
+        let mut group = PackedAxisGroup::NONE;
+        if spread && groups {
+            if let Some(split) = split_axes(&cell.axes) {
+                tensor = split.first;
+                group = split.second;
+            }
+        }
         let axis = principal_axis(tensor).unwrap_or(Vec3::X);
         // With spread records the cone carries the spread: no widening.
         let sigma2 = if spread { 0.0 } else { (1.0 - axis.dot(tensor * axis)).clamp(0.0, SPREAD_MAX) };
@@ -183,21 +198,25 @@ pub fn flyaway_level(model: &HybridModel, level: usize, coverage: Coverage, spre
         let entry = *entries.entry((param, bin)).or_insert_with(|| table.push(&widened(&base[param as usize], bin)));
         let depth = u16::try_from(k).map_err(|_| ModelError::FlyawayNode { level, node: 0, why: format!("depth index {k} does not fit 16 bits") })?;
         if spread {
-            spreads.insert((i, j, depth), axis_spread(tensor, axis).with_slab(slab.0, slab.1));
+            spreads.insert((i, j, depth), (axis_spread(tensor, axis).with_slab(slab.0, slab.1), group));
         }
         columns.entry((i, j)).or_default().push(FlyawayInput { depth, alpha, tangent: axis, param: entry });
     }
     let mut f = Flyaways::from_columns(lw, lh, table, |i, j| columns.remove(&(i, j)).unwrap_or_default())?;
     if spread {
         let mut records = vec![PackedAxisSpread::default(); f.nodes.len()];
+        let mut second = vec![PackedAxisGroup::NONE; f.nodes.len()];
         for j in 0..lh {
             for i in 0..lw {
                 for (index, node) in f.list((j * lw + i) as usize).with_index() {
-                    records[index] = spreads[&(i, j, node.depth)];
+                    (records[index], second[index]) = spreads[&(i, j, node.depth)];
                 }
             }
         }
         f.spreads = Some(records);
+        if groups {
+            f.groups = Some(second);
+        }
     }
     Ok(Some(f))
 }
@@ -230,6 +249,60 @@ fn free_space_alpha(alpha: f32, free: f32) -> f32 {
     }
     let f = free.max(1e-3);
     (1.0 - (1.0 - alpha).powf(1.0 / f)).min(65534.0 / 65535.0)
+}
+
+/// A cell's fibres in two groups of axes.
+struct AxisSplit {
+    /// The larger group's axis tensor (trace 1).
+    first: Mat3,
+    /// The other group: its principal axis, its share of the weight, its spread.
+    second: PackedAxisGroup,
+}
+
+/// Rounds of the two-group k-means.
+const SPLIT_ROUNDS: usize = 8;
+
+/// The fibres `axes` (unit, weighted) in two groups by k-means on axes (similarity
+/// |a · c|, centres the principal axes of their groups), started from the principal axis
+/// of all and the axis least aligned with it. `None` where they do not split: fewer
+/// than two, all within a degree of one axis, or a group left empty or below one part
+/// in 255 of the weight (what the record's share can hold). Measured on the presets'
+/// 70° far views, fixed levels 1–3 with the flyaways alone, against the one cone of all
+/// the fibres: satin's level 2 54.6% → 33.8%, felt's level 3 53.8% → 36.2%
+/// (baker/PREFILTER_MEASUREMENTS.md, "What the coarse flyaways get wrong").
+fn split_axes(axes: &[(Vec3, f32)]) -> Option<AxisSplit> {
+    let outer = |a: Vec3| Mat3::from_cols(a * a.x, a * a.y, a * a.z);
+    let all = axes.iter().fold(Mat3::ZERO, |m, (a, w)| m + outer(*a) * *w);
+    let mut centres = [principal_axis(all)?, Vec3::ZERO];
+    let (far, cos) = axes.iter().map(|(a, _)| (*a, a.dot(centres[0]).abs())).fold((Vec3::ZERO, f32::INFINITY), |b, x| if x.1 < b.1 { x } else { b });
+    if !(cos < 0.9998) {
+        return None;
+    }
+    centres[1] = far;
+    let mut tensors = [Mat3::ZERO; 2];
+    let mut weights = [0.0f32; 2];
+    for _ in 0..SPLIT_ROUNDS {
+        tensors = [Mat3::ZERO; 2];
+        weights = [0.0; 2];
+        for (a, w) in axes {
+            let g = usize::from(a.dot(centres[1]).abs() > a.dot(centres[0]).abs());
+            tensors[g] += outer(*a) * *w;
+            weights[g] += *w;
+        }
+        if !(weights[0] > 0.0 && weights[1] > 0.0) {
+            return None;
+        }
+        centres = [principal_axis(tensors[0])?, principal_axis(tensors[1])?];
+    }
+    let (big, small) = if weights[0] >= weights[1] { (0, 1) } else { (1, 0) };
+    let share = weights[small] / (weights[0] + weights[1]);
+    if !(share * 255.0 >= 0.5) {
+        return None;
+    }
+    let second = tensors[small] * (1.0 / weights[small]);
+    let b = centres[small];
+    let spread = (1.0 - b.dot(second * b)).clamp(0.0, 1.0);
+    Some(AxisSplit { first: tensors[big] * (1.0 / weights[big]), second: PackedAxisGroup::new(b, share, spread) })
 }
 
 /// The spread record of a voxel of axis tensor `tensor` (trace 1) and merged axis

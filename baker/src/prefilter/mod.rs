@@ -71,6 +71,10 @@ pub struct PrefilterOptions {
     /// Store the spread of each coarse flyaway voxel's fibre axes (shaded as a cone of
     /// axes, `brdf::axis_spread`); off: one axis with widened lobes.
     pub flyaway_spread: bool,
+    /// With `flyaway_spread`: split each coarse flyaway voxel's fibres in two groups of
+    /// axes where they split (warp and weft; format 1.8's `FLYAWAY_GROUP`), each shaded
+    /// as its own cone; off: one cone of all of them.
+    pub flyaway_groups: bool,
     /// Weight each level-0 texel by its visible projected area toward ω_o (what a far
     /// pixel sees of it) rather than equally.
     pub masking: bool,
@@ -98,7 +102,7 @@ pub struct PrefilterOptions {
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, free_frames: true, view_tilt: true, compact: true, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, flyaway_groups: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, free_frames: true, view_tilt: true, compact: true, seed: 1 }
     }
 }
 
@@ -314,7 +318,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let fit_error = errors.iter().sum::<f64>() / n;
         errors.sort_by(|a, b| a.total_cmp(b));
         let p95 = errors.get(((errors.len() as f64 * 0.95) as usize).min(errors.len().saturating_sub(1))).copied().unwrap_or(0.0);
-        let mut flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread).map_err(PrefilterError::Output)? } else { None };
+        let mut flyaways = if opts.flyaways { flyaways::flyaway_level(model, level, opts.coverage, opts.flyaway_spread, opts.flyaway_groups).map_err(PrefilterError::Output)? } else { None };
         let transmission_fit_error = bsdf.then(|| trans_error / n);
         if opts.compact {
             compact::quantize_table(&mut table);

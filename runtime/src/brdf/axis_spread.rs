@@ -28,19 +28,43 @@
 //! give different bases; the baker measures the roll in the basis of the tangent as
 //! stored (decoded), which is the one both renderers rebuild.
 
+//!
+//! **Two groups** (format 1.8, `FLYAWAY_GROUP`). A tensor cannot tell warp and weft in one
+//! voxel from fibres at the diagonals: diag(½, ½, 0) is both, and the cone puts its axes
+//! at the diagonals, where under a grazing view the lit fibres are not (satin's coarse
+//! flyaways at 70° came out 1.31× the truth at level 2; baker/PREFILTER_MEASUREMENTS.md,
+//! "What the coarse flyaways get wrong"). A node may split its fibres in two groups: the
+//! first is e₁ with its record's cone as above, the second an axis b with a circular cone
+//! of spread s (λ₂ = λ₃ = s/2; its roll is then irrelevant), weighted by its share w:
+//!
+//! ```text
+//! axes = (1 − w) · cone(e₁, θ, λ₂, λ₃)  ∪  w · cone(b, 0, s/2, s/2)   (up to 8 axes)
+//! ```
+
 use glam::Vec3;
+
+/// Most axes a node is shaded with: two groups of four.
+pub const MAX_SPREAD_AXES: usize = 8;
 
 /// The axes a node is shaded with and their weights (summing to 1; unused axes weigh 0).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpreadAxes {
-    pub axes: [Vec3; 4],
-    pub weights: [f32; 4],
+    pub axes: [Vec3; MAX_SPREAD_AXES],
+    pub weights: [f32; MAX_SPREAD_AXES],
 }
 
 impl SpreadAxes {
     /// One axis.
     pub fn single(e1: Vec3) -> SpreadAxes {
-        SpreadAxes { axes: [e1, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO], weights: [1.0, 0.0, 0.0, 0.0] }
+        let mut s = SpreadAxes { axes: [Vec3::ZERO; MAX_SPREAD_AXES], weights: [0.0; MAX_SPREAD_AXES] };
+        s.axes[0] = e1;
+        s.weights[0] = 1.0;
+        s
+    }
+
+    /// The axes in use and their weights.
+    pub fn weighted(&self) -> impl Iterator<Item = (Vec3, f32)> + '_ {
+        self.axes.iter().zip(self.weights).filter(|(_, w)| *w > 0.0).map(|(a, w)| (*a, w))
     }
 }
 
@@ -67,7 +91,35 @@ pub fn spread_axes(e1: Vec3, roll: f32, lambda2: f32, lambda3: f32) -> SpreadAxe
     let (s, c) = (spread.sqrt(), (1.0 - spread).sqrt());
     let p = 0.5 * (lambda2 / (lambda2 + lambda3));
     let along = e1 * c;
-    SpreadAxes { axes: [along + e2 * s, along - e2 * s, along + e3 * s, along - e3 * s], weights: [p, p, 0.5 - p, 0.5 - p] }
+    let mut out = SpreadAxes::single(e1);
+    out.axes[..4].copy_from_slice(&[along + e2 * s, along - e2 * s, along + e3 * s, along - e3 * s]);
+    out.weights[..4].copy_from_slice(&[p, p, 0.5 - p, 0.5 - p]);
+    out
+}
+
+/// Two groups of axes (format 1.8): the four of `first` weighted by 1 − `share`, then
+/// the four of `second` by `share` (clamped to [0, 1]; `first` alone where it is 0).
+#[inline]
+pub fn grouped_axes(first: SpreadAxes, second: SpreadAxes, share: f32) -> SpreadAxes {
+    let w = share.max(0.0).min(1.0);
+    if !(w > 0.0) {
+        return first;
+    }
+    let mut out = first;
+    for k in 0..4 {
+        out.weights[k] = first.weights[k] * (1.0 - w);
+        out.axes[4 + k] = second.axes[k];
+        out.weights[4 + k] = second.weights[k] * w;
+    }
+    out
+}
+
+/// The second group of a record (format 1.8): axis `b` (unit) on a circular cone of
+/// spread `s` = sin²δ ∈ [0, 1] (λ₂ = λ₃ = s/2, roll 0).
+#[inline]
+pub fn group_axes(b: Vec3, s: f32) -> SpreadAxes {
+    let half = 0.5 * s.max(0.0).min(1.0);
+    spread_axes(b, 0.0, half, half)
 }
 
 /// The roll angle θ ∈ [0, π) of axis `e2` (⊥ e₁, either sign) about `e1`.
@@ -83,7 +135,7 @@ mod tests {
     use super::*;
 
     fn tensor(s: &SpreadAxes) -> glam::Mat3 {
-        s.axes.iter().zip(s.weights).fold(glam::Mat3::ZERO, |m, (a, w)| m + glam::Mat3::from_cols(*a * a.x, *a * a.y, *a * a.z) * w)
+        s.weighted().fold(glam::Mat3::ZERO, |m, (a, w)| m + glam::Mat3::from_cols(a * a.x, a * a.y, a * a.z) * w)
     }
 
     #[test]
@@ -115,7 +167,7 @@ mod tests {
             let e3 = e1.cross(e2);
             for (l2, l3) in [(0.3, 0.1), (0.02, 0.0), (1.0 / 3.0, 1.0 / 3.0)] {
                 let s = spread_axes(e1, theta, l2, l3);
-                for a in s.axes {
+                for (a, _) in s.weighted() {
                     assert!((a.length() - 1.0).abs() < 1e-5);
                 }
                 let t = tensor(&s);
@@ -130,11 +182,11 @@ mod tests {
     fn a_single_fibre_is_its_axis_and_an_isotropic_voxel_the_cube_diagonals() {
         assert_eq!(spread_axes(Vec3::Z, 0.3, 0.0, 0.0), SpreadAxes::single(Vec3::Z));
         let s = spread_axes(Vec3::Z, 0.0, 1.0 / 3.0, 1.0 / 3.0);
-        for a in s.axes {
+        for (a, _) in s.weighted() {
             // Each diagonal is at acos(1/√3) from the axis and from the others' ±.
             assert!((a.z - 1.0 / 3f32.sqrt()).abs() < 1e-5, "{a}");
         }
-        assert!(s.weights.iter().all(|w| (w - 0.25).abs() < 1e-6));
+        assert!(s.weights[..4].iter().all(|w| (w - 0.25).abs() < 1e-6) && s.weights[4..].iter().all(|w| *w == 0.0));
     }
 
     #[test]
@@ -144,5 +196,38 @@ mod tests {
             assert!(s.weights.iter().all(|w| *w >= 0.0) && (s.weights.iter().sum::<f32>() - 1.0).abs() < 1e-6);
             assert!(s.axes.iter().all(|a| a.is_finite()));
         }
+    }
+
+    #[test]
+    fn two_groups_keep_warp_and_weft_where_one_cone_puts_the_diagonals() {
+        // Warp (x) and weft (y) half and half: the tensor diag(½, ½, 0). One cone about x
+        // with λ₂ = ½ puts its axes at the diagonals; two groups keep x and y.
+        let one = spread_axes(Vec3::X, spread_roll(Vec3::X, Vec3::Y), 0.5, 0.0);
+        for (a, _) in one.weighted() {
+            assert!((a.x.abs() - 0.5f32.sqrt()).abs() < 1e-5 && (a.y.abs() - 0.5f32.sqrt()).abs() < 1e-5, "{a}");
+        }
+        let two = grouped_axes(SpreadAxes::single(Vec3::X), group_axes(Vec3::Y, 0.0), 0.5);
+        let axes: Vec<(Vec3, f32)> = two.weighted().collect();
+        assert_eq!(axes, vec![(Vec3::X, 0.5), (Vec3::Y, 0.5)]);
+        // Both have the same tensor.
+        let (t1, t2) = (tensor(&one), tensor(&two));
+        assert!((t1 - t2).abs().to_cols_array().iter().all(|d| *d < 1e-5), "{t1} {t2}");
+    }
+
+    #[test]
+    fn grouped_weights_sum_to_one_and_the_tensor_is_the_mixture() {
+        let a = spread_axes(Vec3::new(0.3, 0.1, 0.9).normalize(), 0.7, 0.2, 0.05);
+        let b = group_axes(Vec3::new(-0.5, 0.8, 0.1).normalize(), 0.3);
+        for share in [0.0f32, 0.25, 0.5, 1.0, 1.5, -1.0] {
+            let g = grouped_axes(a, b, share);
+            assert!((g.weights.iter().sum::<f32>() - 1.0).abs() < 1e-6 && g.weights.iter().all(|w| *w >= 0.0));
+            let w = share.clamp(0.0, 1.0);
+            let mix = tensor(&a) * (1.0 - w) + tensor(&b) * w;
+            assert!((tensor(&g) - mix).abs().to_cols_array().iter().all(|d| *d < 1e-5), "share {share}");
+        }
+        // A circular cone: λ₂ = λ₃, whatever the roll.
+        let t = tensor(&b);
+        let e = Vec3::new(-0.5, 0.8, 0.1).normalize();
+        assert!((e.dot(t * e) - 0.7).abs() < 1e-5);
     }
 }

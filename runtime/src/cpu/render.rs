@@ -633,11 +633,12 @@ impl<'a> Scene<'a> {
                     let b = fiber(axes.axes[0]);
                     return shade(&b, p, wo, self.lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY);
                 }
-                // A coarse node's spread axes (brdf::axis_spread): their mean response,
-                // each light's visibility once. A fixed array: this runs per node crossed.
-                let mut texels = [(fiber(axes.axes[0]), 0.0f32); 4];
+                // A coarse node's spread axes, one or two groups (brdf::axis_spread): their
+                // mean response, each light's visibility once. A fixed array: this runs per
+                // node crossed.
+                let mut texels = [(fiber(axes.axes[0]), 0.0f32); crate::brdf::axis_spread::MAX_SPREAD_AXES];
                 let mut n = 0;
-                for k in (0..4).filter(|&k| axes.weights[k] > 0.0) {
+                for k in (0..crate::brdf::axis_spread::MAX_SPREAD_AXES).filter(|&k| axes.weights[k] > 0.0) {
                     texels[n] = (fiber(axes.axes[k]), axes.weights[k]);
                     n += 1;
                 }

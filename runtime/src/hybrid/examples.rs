@@ -287,3 +287,15 @@ pub fn add_axis_spreads(model: &mut HybridModel, strength: f32) {
         }
     }
 }
+
+/// Gives the flyaway nodes of every coarse level of `model` that has spread records a
+/// second group of axes (format 1.8) that differs per node: axis turning with k, share
+/// 0.2·(k mod 4) (none where k is a multiple of 4), spread 0.15·(k mod 3) for node k.
+pub fn add_axis_groups(model: &mut HybridModel) {
+    use crate::hybrid::PackedAxisGroup;
+    for l in model.levels.iter_mut().skip(1) {
+        if let Some(f) = l.flyaways.as_mut().filter(|f| f.spreads.is_some()) {
+            f.groups = Some((0..f.nodes.len()).map(|k| PackedAxisGroup::new(Vec3::new((1.3 * k as f32).cos(), (0.9 * k as f32).sin(), 0.4 - 0.1 * (k % 5) as f32), 0.2 * (k % 4) as f32, 0.15 * (k % 3) as f32)).collect());
+        }
+    }
+}

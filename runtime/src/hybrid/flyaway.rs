@@ -111,6 +111,54 @@ impl PackedAxisSpread {
     }
 }
 
+/// A coarse node's second group of fibre axes (format 1.8, the optional `FLYAWAY_GROUP`
+/// section; `brdf::axis_spread::grouped_axes`): its axis, octahedral 2×snorm8, its share
+/// of the node's fibres (unorm8; 0: the node is its record's one cone) and the spread
+/// sin²δ of its circular cone (unorm8). The node's tangent and [`PackedAxisSpread`] are
+/// then the first group's. 4 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedAxisGroup {
+    pub axis: [u8; 2],
+    pub share: u8,
+    pub spread: u8,
+}
+
+const _: () = assert!(core::mem::size_of::<PackedAxisGroup>() == 4);
+
+impl PackedAxisGroup {
+    /// No second group.
+    pub const NONE: PackedAxisGroup = PackedAxisGroup { axis: [0, 0], share: 0, spread: 0 };
+
+    /// Packs axis `b` (need not be unit), share `w` and spread `s` (both clamped to [0, 1]).
+    pub fn new(b: Vec3, share: f32, spread: f32) -> PackedAxisGroup {
+        let unorm8 = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 };
+        PackedAxisGroup { axis: super::packing::octahedral_encode8(b), share: unorm8(share), spread: unorm8(spread) }
+    }
+
+    pub fn axis(&self) -> Vec3 {
+        super::packing::octahedral_decode8(self.axis)
+    }
+
+    pub fn share(&self) -> f32 {
+        self.share as f32 * (1.0 / 255.0)
+    }
+
+    pub fn spread(&self) -> f32 {
+        self.spread as f32 * (1.0 / 255.0)
+    }
+
+    /// A node's axes: `first` (its record's cone) and this group (`first` alone where
+    /// the share is 0).
+    pub fn axes(&self, first: crate::brdf::axis_spread::SpreadAxes) -> crate::brdf::axis_spread::SpreadAxes {
+        use crate::brdf::axis_spread::{group_axes, grouped_axes};
+        if self.share == 0 {
+            return first;
+        }
+        grouped_axes(first, group_axes(self.axis(), self.spread()), self.share())
+    }
+}
+
 /// A flyaway voxel as a baker or a test describes it (the builder's input).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FlyawayInput {
@@ -135,6 +183,9 @@ pub struct Flyaways {
     /// One record per node (in `nodes`' order) where the level stores its axes' spread
     /// (the optional `FLYAWAY_SPREAD` section); `None`: each node is one axis.
     pub spreads: Option<Vec<PackedAxisSpread>>,
+    /// One second group of axes per node (in `nodes`' order; format 1.8, the optional
+    /// `FLYAWAY_GROUP` section), only with `spreads`; `None`: one group per node.
+    pub groups: Option<Vec<PackedAxisGroup>>,
 }
 
 impl FlyawayInput {
@@ -170,7 +221,7 @@ impl Flyaways {
                 }
             }
         }
-        Ok(Flyaways { heads, nodes, table, spreads: None })
+        Ok(Flyaways { heads, nodes, table, spreads: None, groups: None })
     }
 
     /// The list of texel `index` (= j·width + i), top down. Stops after `nodes.len()`
@@ -224,6 +275,10 @@ impl Flyaways {
         if let Some(node) = seen.iter().position(|s| !s) {
             return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
         }
+        if self.groups.is_some() && self.spreads.is_none() {
+            // The second group is the rest of a node whose record gives the first.
+            return Err(ModelError::Length { what: "flyaway spread records (axis groups need them)", level, expected: len as u64, got: 0 });
+        }
         if let Some(spreads) = &self.spreads {
             if spreads.len() != len {
                 return Err(ModelError::Length { what: "flyaway spread records", level, expected: len as u64, got: spreads.len() as u64 });
@@ -236,6 +291,11 @@ impl Flyaways {
                 let s = spreads[node];
                 return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("occupied depth range [{}, {}]/255 is reversed", s.slab[0], s.slab[1]) });
             }
+            if let Some(groups) = &self.groups {
+                if groups.len() != len {
+                    return Err(ModelError::Length { what: "flyaway axis groups", level, expected: len as u64, got: groups.len() as u64 });
+                }
+            }
             if let Some(node) = spreads.iter().position(|s| s.reserved != 0) {
                 return Err(ModelError::FlyawayNode { level, node: node as u32, why: format!("reserved spread field is {}, not 0", spreads[node].reserved) });
             }
@@ -243,20 +303,25 @@ impl Flyaways {
         Ok(())
     }
 
-    /// Bytes these lists take in the file (heads, nodes, spread records, table).
+    /// Bytes these lists take in the file (heads, nodes, spread records, axis groups, table).
     pub fn byte_size(&self) -> u64 {
+        let groups = self.groups.as_ref().map_or(0, |g| g.len() * size_of::<PackedAxisGroup>()) as u64;
         let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * if super::compact::compact_spreads(s).is_some() { size_of::<super::compact::CompactAxisSpread>() } else { size_of::<PackedAxisSpread>() });
         let node = if super::compact::compact_flyaway_nodes(self).is_some() { size_of::<super::compact::CompactFlyawayNode>() } else { size_of::<FlyawayNode>() };
-        (self.heads.len() * 4 + self.nodes.len() * node + spreads) as u64 + self.table.byte_size()
+        (self.heads.len() * 4 + self.nodes.len() * node + spreads) as u64 + groups + self.table.byte_size()
     }
 
     /// The node at `index` and its axes (one axis, weight 1, where the level has no
-    /// spread records).
+    /// spread records; its two groups where it has a second, format 1.8).
     pub fn node_axes(&self, index: usize) -> crate::brdf::axis_spread::SpreadAxes {
         let node = &self.nodes[index];
-        match self.spreads.as_ref().and_then(|s| s.get(index)) {
+        let first = match self.spreads.as_ref().and_then(|s| s.get(index)) {
             Some(s) => s.axes(node),
-            None => crate::brdf::axis_spread::SpreadAxes::single(node.tangent()),
+            None => return crate::brdf::axis_spread::SpreadAxes::single(node.tangent()),
+        };
+        match self.groups.as_ref().and_then(|g| g.get(index)) {
+            Some(g) => g.axes(first),
+            None => first,
         }
     }
 }

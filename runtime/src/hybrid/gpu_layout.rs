@@ -13,7 +13,7 @@
 //! | 3       | `lobes`              | [`PackedLobe`] of every table              |
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
-//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spreads`: the [`PackedAxisSpread`] of every level that has them, as 4-byte words (`GpuLevel::spread_base`), two per record |
+//! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spread_words`: per node of every level with spread records, its [`PackedAxisSpread`] (two 4-byte words) and its [`PackedAxisGroup`] (one word, zero without one): three words per node (`GpuLevel::spread_base`) |
 //! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
 //! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
@@ -24,7 +24,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::flyaway::{FlyawayNode, PackedAxisSpread};
+use super::flyaway::{FlyawayNode, PackedAxisGroup, PackedAxisSpread};
 use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission, PackedViewTilt};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
@@ -82,8 +82,8 @@ pub struct GpuLevel {
     /// First view tilt record of this level in `view_tilts` (binding 13), or
     /// [`crate::hybrid::NO_NODE`] where the level has none.
     pub tilt_base: u32,
-    /// First spread record of this level's flyaway nodes (two 4-byte words each), as a
-    /// word index into binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
+    /// First spread record of this level's flyaway nodes (three 4-byte words each: the
+    /// record's two, then its axis group's), as a word index into binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
     /// where the level has none.
     pub spread_base: u32,
 }
@@ -137,9 +137,10 @@ pub struct GpuModel {
     pub texels: Vec<ClusteredTexel>,
     pub fly_heads: Vec<u32>,
     pub fly_nodes: Vec<FlyawayNode>,
-    /// The spread records of every level that has them, in level order (uploaded after
-    /// `fly_nodes` in binding 6).
-    pub fly_spreads: Vec<PackedAxisSpread>,
+    /// Per node of every level with spread records, in level order: its spread record
+    /// (two words) and its second axis group (one word, zero where it has none; format
+    /// 1.8), uploaded after `fly_nodes` in binding 6.
+    pub fly_spread_words: Vec<u32>,
     pub transmissions: Vec<PackedTransmission>,
     pub view_tilts: Vec<PackedViewTilt>,
 }
@@ -193,7 +194,7 @@ impl GpuModel {
             texels: Vec::new(),
             fly_heads: Vec::new(),
             fly_nodes: Vec::new(),
-            fly_spreads: Vec::new(),
+            fly_spread_words: Vec::new(),
             transmissions: Vec::new(),
             view_tilts: Vec::new(),
         };
@@ -230,9 +231,14 @@ impl GpuModel {
             // Made absolute once all nodes are laid out (they come first in binding 6).
             g.spread_base = match l.flyaways.as_ref().and_then(|f| f.spreads.as_ref()).filter(|s| !s.is_empty()) {
                 Some(s) => {
-                    out.fly_spreads.extend_from_slice(s);
-                    // In words: a record is two.
-                    (2 * (out.fly_spreads.len() - s.len())) as u32
+                    let base = out.fly_spread_words.len() as u32;
+                    let groups = l.flyaways.as_ref().and_then(|f| f.groups.as_ref());
+                    for (k, record) in s.iter().enumerate() {
+                        out.fly_spread_words.extend_from_slice(bytemuck::cast_slice::<PackedAxisSpread, u32>(std::slice::from_ref(record)));
+                        let group = groups.and_then(|g| g.get(k)).copied().unwrap_or(PackedAxisGroup::NONE);
+                        out.fly_spread_words.push(bytemuck::cast(group));
+                    }
+                    base
                 }
                 None => crate::hybrid::NO_NODE,
             };
@@ -256,7 +262,7 @@ impl GpuModel {
         for g in out.header.levels.iter_mut().take(model.levels.len()).filter(|g| g.spread_base != crate::hybrid::NO_NODE) {
             g.spread_base = u32::try_from(node_words + g.spread_base as u64).map_err(|_| ModelError::Meta("flyaway spread records: more than the GPU layout's 32-bit indices reach".into()))?;
         }
-        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len() + out.fly_spreads.len()), ("floats", out.floats.len()), ("transmission records", out.transmissions.len()), ("view tilt records", out.view_tilts.len())] {
+        for (what, len) in [("BRDF headers", out.headers.len()), ("lobes", out.lobes.len()), ("texels", out.texels.len()), ("flyaway nodes", out.fly_nodes.len() + out.fly_spread_words.len().div_ceil(4)), ("floats", out.floats.len()), ("transmission records", out.transmissions.len()), ("view tilt records", out.view_tilts.len())] {
             if len >= u32::MAX as usize {
                 return Err(ModelError::Meta(format!("{len} {what}: more than the GPU layout's 32-bit indices reach")));
             }
@@ -281,9 +287,9 @@ impl GpuModel {
     /// Binding 6: the nodes, then the spread records padded to whole 16-byte elements.
     fn node_array(&self) -> Vec<u8> {
         let mut b = bytes(&self.fly_nodes, 16);
-        if !self.fly_spreads.is_empty() {
+        if !self.fly_spread_words.is_empty() {
             b.truncate(self.fly_nodes.len() * 16);
-            b.extend_from_slice(bytemuck::cast_slice(&self.fly_spreads));
+            b.extend_from_slice(bytemuck::cast_slice(&self.fly_spread_words));
             b.resize(b.len().div_ceil(16) * 16, 0);
         }
         b

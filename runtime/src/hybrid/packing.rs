@@ -62,11 +62,12 @@ pub fn snorm16_value(code: u16) -> f32 {
     (code as i16 as f32 * (1.0 / 32767.0)).max(-1.0)
 }
 
-/// Octahedral code of a direction (need not be unit). Zero or non-finite → +Z.
-pub fn octahedral_encode(w: Vec3) -> [u16; 2] {
+/// The octahedral coordinates (u, v) ∈ [−1, 1]² of a direction (need not be unit).
+/// Zero or non-finite → +Z, (0, 0).
+fn octahedral_uv(w: Vec3) -> (f32, f32) {
     let l1 = w.x.abs() + w.y.abs() + w.z.abs();
     if !(l1 > 0.0 && l1.is_finite()) {
-        return [0, 0];
+        return (0.0, 0.0);
     }
     let p = w / l1;
     let (mut u, mut v) = (p.x, p.y);
@@ -75,13 +76,47 @@ pub fn octahedral_encode(w: Vec3) -> [u16; 2] {
         u = (1.0 - ov.abs()) * sign_not_zero(ou);
         v = (1.0 - ou.abs()) * sign_not_zero(ov);
     }
+    (u, v)
+}
+
+/// Octahedral code of a direction (need not be unit). Zero or non-finite → +Z.
+pub fn octahedral_encode(w: Vec3) -> [u16; 2] {
+    let (u, v) = octahedral_uv(w);
     [snorm16(u), snorm16(v)]
+}
+
+/// [−1, 1] → snorm8 bits (i8 as u8; clamped; NaN → 0).
+#[inline]
+pub fn snorm8(v: f32) -> u8 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(-1.0, 1.0) };
+    ((v * 127.0).round() as i8) as u8
+}
+
+/// snorm8 bits → [−1, 1] (Vulkan's SNORM conversion).
+#[inline]
+pub fn snorm8_value(code: u8) -> f32 {
+    (code as i8 as f32 * (1.0 / 127.0)).max(-1.0)
+}
+
+/// Octahedral code of a direction at 8 bits per coordinate (format 1.8's second axis
+/// group, about half a degree apart). Zero or non-finite → +Z.
+pub fn octahedral_encode8(w: Vec3) -> [u8; 2] {
+    let (u, v) = octahedral_uv(w);
+    [snorm8(u), snorm8(v)]
+}
+
+/// Unit direction of an 8-bit octahedral code. Every code decodes to a unit vector.
+pub fn octahedral_decode8(c: [u8; 2]) -> Vec3 {
+    octahedral_from_uv(snorm8_value(c[0]), snorm8_value(c[1]))
 }
 
 /// Unit direction of an octahedral code. Every code decodes to a unit vector.
 pub fn octahedral_decode(c: [u16; 2]) -> Vec3 {
-    let u = snorm16_value(c[0]);
-    let v = snorm16_value(c[1]);
+    octahedral_from_uv(snorm16_value(c[0]), snorm16_value(c[1]))
+}
+
+/// Unit direction of octahedral coordinates (u, v) ∈ [−1, 1]².
+fn octahedral_from_uv(u: f32, v: f32) -> Vec3 {
     let z = 1.0 - u.abs() - v.abs();
     let (x, y) = if z < 0.0 { ((1.0 - v.abs()) * sign_not_zero(u), (1.0 - u.abs()) * sign_not_zero(v)) } else { (u, v) };
     let w = Vec3::new(x, y, z);

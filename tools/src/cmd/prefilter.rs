@@ -47,6 +47,11 @@ pub struct PrefilterArgs {
     /// FLYAWAY_SPREAD).
     #[arg(long)]
     pub no_flyaway_spread: bool,
+    /// Shade each coarse flyaway voxel as one cone of all its fibres' axes, rather than
+    /// in two groups where they split, warp and weft (format 1.8's FLYAWAY_GROUP;
+    /// baker/PREFILTER_MEASUREMENTS.md, "What the coarse flyaways get wrong").
+    #[arg(long)]
+    pub no_flyaway_groups: bool,
     /// Keep the coarse levels at level 0's precision (f16 colours, 16-bit frames and
     /// tilts) instead of format 1.7's compact records (baker/PREFILTER_MEASUREMENTS.md,
     /// "Compact coarse records", measures both).
@@ -70,7 +75,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, compact: !self.full_precision, free_frames: !self.moment_frames, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, flyaway_groups: !self.no_flyaway_groups, compact: !self.full_precision, free_frames: !self.moment_frames, seed, ..Default::default() })
     }
 }
 

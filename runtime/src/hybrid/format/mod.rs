@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 7;
+pub const VERSION_MINOR: u16 = 8;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -90,6 +90,9 @@ pub enum SectionKind {
     /// Per level with flyaways, instead of FLYAWAY_NODES (1.7): nodes without their
     /// link, 8 bytes each (lists stored column by column).
     FlyawayNodesCompact = 38,
+    /// Per coarse level with spread records, optional (1.8): each node's second group of
+    /// fibre axes (4 bytes per node).
+    FlyawayGroup = 39,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
     /// Per coarse level, optional (1.4): the view tilt per texel (12 bytes each).
@@ -99,7 +102,7 @@ pub enum SectionKind {
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 18] = [
+    pub const ALL: [SectionKind; 19] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -115,6 +118,7 @@ impl SectionKind {
         SectionKind::FlyawaySpread,
         SectionKind::FlyawaySpreadCompact,
         SectionKind::FlyawayNodesCompact,
+        SectionKind::FlyawayGroup,
         SectionKind::Transmission,
         SectionKind::ViewTilt,
         SectionKind::ViewTiltCompact,
@@ -144,6 +148,7 @@ impl SectionKind {
             SectionKind::FlyawaySpread => "FLYAWAY_SPREAD",
             SectionKind::FlyawaySpreadCompact => "FLYAWAY_SPREAD_COMPACT",
             SectionKind::FlyawayNodesCompact => "FLYAWAY_NODES_COMPACT",
+            SectionKind::FlyawayGroup => "FLYAWAY_GROUP",
             SectionKind::Transmission => "TRANSMISSION",
             SectionKind::ViewTilt => "VIEW_TILT",
             SectionKind::SurfaceTexelsCompact => "SURFACE_TEXELS_COMPACT",

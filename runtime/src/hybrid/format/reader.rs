@@ -308,7 +308,7 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         };
         let flyaways = match s.get(SectionKind::FlyawayHeads, l) {
             None => {
-                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact] {
+                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, SectionKind::FlyawayGroup] {
                     if let Some((index, _)) = s.get(kind, l) {
                         return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "present without FLYAWAY_HEADS".into() });
                     }
@@ -323,7 +323,11 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
                     (None, None) => None,
                     _ => Some(s.wide_or_compact(SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, l, |c| Ok(compact::expand_spreads(c)))?),
                 };
-                Some(Flyaways { heads, nodes, table, spreads })
+                let groups = match s.get(SectionKind::FlyawayGroup, l) {
+                    Some(_) => Some(s.array(SectionKind::FlyawayGroup, l)?),
+                    None => None,
+                };
+                Some(Flyaways { heads, nodes, table, spreads, groups })
             }
         };
         let transmission = match s.get(SectionKind::Transmission, l) {

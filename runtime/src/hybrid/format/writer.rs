@@ -86,6 +86,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
                     None => out.push((SectionKind::FlyawaySpread, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(spreads)))),
                 }
             }
+            // Optional: a 1.7 reader skips it and shades each node as its first group's cone.
+            if let Some(groups) = &f.groups {
+                out.push((SectionKind::FlyawayGroup, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(groups))));
+            }
         }
         // Optional: a 1.2 reader skips it and renders the reflection alone.
         if let Some(t) = &l.transmission {
