@@ -35,7 +35,10 @@
 //! (`FLYAWAY_SPREAD`, format 1.5): renderers shade it as four axes on a cone with T's
 //! second moment (`brdf::axis_spread`), which brings a node's response to within a few
 //! percent of the mean of the level-0 nodes it merges at 45° (one merged axis: 0.5–0.9
-//! of it; a lit fibre among unlit ones is all or nothing). Its BRDF is that of the
+//! of it; a lit fibre among unlit ones is all or nothing). Where the fibres split in two
+//! groups of axes (warp and weft, whose tensor is also that of fibres along the
+//! diagonals), the node's axis and record are the larger group's and the other is its
+//! `FLYAWAY_GROUP` record (format 1.8, [`split_axes`]). Its BRDF is that of the
 //! flyaway cluster with the most of that weight inside it. Without spread records
 //! (`PrefilterOptions::flyaway_spread` off) each lobe is widened by the spread instead:
 //! β'² = β² + 2σ², σ² = 1 − eᵀ T e (the moment rule of the surface lobes,
