@@ -79,7 +79,8 @@ layout(std430, set = 0, binding = 4) readonly buffer TexelBlock { uvec2 clustere
 layout(std430, set = 0, binding = 5) readonly buffer HeadBlock { uint fly_heads[]; };
 layout(std430, set = 0, binding = 6) readonly buffer NodeBlock { uvec4 fly_nodes[]; };
 
-// Word w of binding 6: the flyaway spread records (two words each) follow the nodes.
+// Word w of binding 6: the flyaway spread records follow the nodes, three words per node
+// (the record's two, then its axis group's; format 1.8).
 uint fly_spread_word(uint w) {
     return fly_nodes[w >> 2][w & 3u];
 }
