@@ -108,6 +108,10 @@ fn main() {
         println!("  level {level}: mean free fraction {:.3}, {} of {} nodes reach below the surface", free / count as f64, straddle, count);
         ratios.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let q = |p: f64| ratios.get(((ratios.len() as f64 - 1.0) * p) as usize).copied().unwrap_or(f64::NAN);
+        if let Some(g) = &f.groups {
+            let split: Vec<f32> = g.iter().filter(|g| g.share > 0).map(|g| g.share()).collect();
+            println!("  level {level}: {} of {} nodes in two groups, mean second share {:.2}", split.len(), g.len(), split.iter().sum::<f32>() / split.len().max(1) as f32);
+        }
         println!("level {level}: {} nodes; Σ coarse response / Σ cells' mean fine response {:.3}; α-weighted {:.3}; per node ratio quartiles {:.2} {:.2} {:.2}; Σα coarse {:.0} fine {:.0}", f.nodes.len(), coarse / fine, coarse_w / fine_w, q(0.25), q(0.5), q(0.75), coarse_alpha, fine_alpha);
     }
 }

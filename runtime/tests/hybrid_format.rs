@@ -553,14 +553,14 @@ fn semantic_corruption_catalogue() {
 /// error or returns the original model (a flip in inter-section padding is harmless);
 /// never a panic. With the CRCs recomputed, semantic damage must be caught too.
 fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
-    // The sample (wide surfaces, compact flyaway nodes) and the compact sample (every
-    // compact record), alternately.
-    let models = [sample(), compact_sample()];
+    // The sample (wide surfaces, compact flyaway nodes), the compact sample (every
+    // compact record) and the group sample (spread records and axis groups, 1.8), in turn.
+    let models = [sample(), compact_sample(), group_sample()];
     let files = models.each_ref().map(|m| format::to_bytes(m).unwrap());
     let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
     let (mut rejected, mut accepted) = (0, 0);
     for it in 0..iterations {
-        let (good, model) = (&files[(it % 2) as usize], &models[(it % 2) as usize]);
+        let (good, model) = (&files[(it % 3) as usize], &models[(it % 3) as usize]);
         let kind = rng.next_u64() % 6;
         let b = match kind {
             k if k < format::mutate::KINDS => format::mutate::mutate(good, k, &mut rng),
