@@ -134,6 +134,8 @@ pub struct LevelReport {
     pub error_by_lobes: Vec<f64>,
     pub surface_bytes: u64,
     pub flyaway_nodes: usize,
+    /// Of those, the nodes whose fibres split in two groups of axes (format 1.8).
+    pub flyaway_two_groups: usize,
     pub flyaway_bytes: u64,
     /// A BSDF's transmission term: mean relative error of its fit to the footprint's
     /// level-0 terms over the backlit pairs, and its bytes (None / 0: no transmission).
@@ -347,6 +349,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             error_by_lobes: by_lobes.iter().map(|e| e / n).collect(),
             surface_bytes: l.surface_bytes(),
             flyaway_nodes: l.flyaways.as_ref().map_or(0, |f| f.nodes.len()),
+            flyaway_two_groups: l.flyaways.as_ref().and_then(|f| f.groups.as_ref()).map_or(0, |g| g.iter().filter(|g| g.share > 0).count()),
             flyaway_bytes: l.flyaways.as_ref().map_or(0, |f| f.byte_size()),
             transmission_fit_error,
             transmission_bytes: l.transmission_bytes(),

@@ -146,6 +146,10 @@ pub fn print_report(r: &PrefilterReport) {
             l.seconds
         );
     }
+    let groups: Vec<String> = r.levels.iter().filter(|l| l.flyaway_two_groups > 0).map(|l| format!("{} {}/{}", l.level, l.flyaway_two_groups, l.flyaway_nodes)).collect();
+    if !groups.is_empty() {
+        println!("  flyaway nodes in two groups of fibre axes per level: {}; 4 bytes per node", groups.join(", "));
+    }
     let trans: Vec<String> = r.levels.iter().filter_map(|l| l.transmission_fit_error.map(|e| format!("{} {:.2}%", l.level, 100.0 * e))).collect();
     if !trans.is_empty() {
         println!("  transmission (BSDF), fit error per level: {}; 24 bytes per texel", trans.join(", "));
