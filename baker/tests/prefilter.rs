@@ -200,21 +200,28 @@ fn coarse_flyaways_store_their_fibres_spread_and_one_fibre_has_none() {
     let v = |i, j, t: Vec3| (i, j, FlyawayInput { depth: 0, alpha: 1.0, tangent: t, param: 0 });
     let (a, b) = (Vec3::X, Vec3::new(0.5, 3f32.sqrt() / 2.0, 0.0));
     add_flyaways(&mut m, 0, &[v(0, 0, a), v(1, 0, b), v(2, 2, Vec3::Y)], &plain_params()).unwrap();
-    let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), ..Default::default() }, &NoProgress).unwrap();
-    let f = out.levels[1].flyaways.as_ref().unwrap();
-    let spreads = f.spreads.as_ref().expect("spread records");
-    assert_eq!(spreads.len(), f.nodes.len());
-    let two = f.heads[0] as usize;
-    let axes = f.node_axes(two);
-    // The cone's two heavy axes are the two fibres (sin²30° = ¼ of spread, in their plane).
-    for t in [a, b] {
-        assert!(axes.axes.iter().zip(axes.weights).any(|(x, w)| w > 0.45 && x.dot(t).abs() > 0.995), "{t} not among {axes:?}");
+    // One cone (format 1.5, `flyaway_groups` off) and two groups (1.8, the default).
+    for groups in [false, true] {
+        let (out, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_groups: groups, ..Default::default() }, &NoProgress).unwrap();
+        let f = out.levels[1].flyaways.as_ref().unwrap();
+        let spreads = f.spreads.as_ref().expect("spread records");
+        assert_eq!(spreads.len(), f.nodes.len());
+        assert_eq!(f.groups.is_some(), groups);
+        let two = f.heads[0] as usize;
+        let axes = f.node_axes(two);
+        // The cone's two heavy axes are the two fibres (sin²30° = ¼ of spread, in their
+        // plane); two groups are the two fibres themselves, half each.
+        for t in [a, b] {
+            assert!(axes.weighted().any(|(x, w)| w > 0.45 && x.dot(t).abs() > 0.995), "groups {groups}: {t} not among {axes:?}");
+        }
+        assert_eq!(axes.weighted().count(), 2, "{axes:?}");
+        let one = f.heads[3] as usize;
+        assert_eq!(f.node_axes(one).weighted().map(|(_, w)| w).collect::<Vec<_>>(), vec![1.0]);
     }
-    let one = f.heads[3] as usize;
-    assert_eq!(f.node_axes(one).weighted().map(|(_, w)| w).collect::<Vec<_>>(), vec![1.0]);
     // Without spreads: one axis per node, and the lobes of the two-fibre voxel widened.
     let (plain, _) = prefilter(&m, &PrefilterOptions { levels: Some(2), flyaway_spread: false, ..Default::default() }, &NoProgress).unwrap();
     let g = plain.levels[1].flyaways.as_ref().unwrap();
+    let one = g.heads[3] as usize;
     assert!(g.spreads.is_none());
     let beta = |k: u32| g.table.brdf_in_frame(k as usize, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)).params.lobes[0].beta;
     assert!(beta(g.nodes[g.heads[0] as usize].param) > beta(g.nodes[one].param) + 0.05);

@@ -1,7 +1,7 @@
 // axis_spread.glsl — a coarse flyaway voxel's fiber axes: four axes on a cone about its
 // tangent with its level-0 fibers' axis tensor (format 1.5, FLYAWAY_SPREAD), and a second
 // group of four on a circular cone (format 1.8, FLYAWAY_GROUP; runtime/HYBRID_FORMAT.md
-// §7.1; the module docs of the twin are the definition).
+// §7.1 and §7.2; the module docs of the twin are the definition).
 //
 // Twin: runtime/src/brdf/axis_spread.rs (same names, same order):
 //   e2 = cos(roll) r + sin(roll) q,  e3 = e1 x e2,  sin^2(delta) = l2 + l3,

@@ -234,7 +234,7 @@ impl GpuModel {
                     let base = out.fly_spread_words.len() as u32;
                     let groups = l.flyaways.as_ref().and_then(|f| f.groups.as_ref());
                     for (k, record) in s.iter().enumerate() {
-                        out.fly_spread_words.extend_from_slice(bytemuck::cast_slice::<PackedAxisSpread, u32>(std::slice::from_ref(record)));
+                        out.fly_spread_words.extend_from_slice(&bytemuck::cast::<PackedAxisSpread, [u32; 2]>(*record));
                         let group = groups.and_then(|g| g.get(k)).copied().unwrap_or(PackedAxisGroup::NONE);
                         out.fly_spread_words.push(bytemuck::cast(group));
                     }
@@ -259,6 +259,10 @@ impl GpuModel {
             out.header.levels[k] = g;
         }
         let node_words = 4 * out.fly_nodes.len() as u64;
+        // The shaders index binding 6 by 32-bit word, NO_NODE excluded.
+        if node_words + out.fly_spread_words.len() as u64 >= u32::MAX as u64 {
+            return Err(ModelError::Meta("flyaway nodes and spread records: more words than the GPU layout's 32-bit indices reach".into()));
+        }
         for g in out.header.levels.iter_mut().take(model.levels.len()).filter(|g| g.spread_base != crate::hybrid::NO_NODE) {
             g.spread_base = u32::try_from(node_words + g.spread_base as u64).map_err(|_| ModelError::Meta("flyaway spread records: more than the GPU layout's 32-bit indices reach".into()))?;
         }

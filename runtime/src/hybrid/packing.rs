@@ -99,7 +99,8 @@ pub fn snorm8_value(code: u8) -> f32 {
 }
 
 /// Octahedral code of a direction at 8 bits per coordinate (format 1.8's second axis
-/// group, about half a degree apart). Zero or non-finite → +Z.
+/// group: within 0.95° of the direction, runtime/HYBRID_FORMAT.md §8). Zero or
+/// non-finite → +Z.
 pub fn octahedral_encode8(w: Vec3) -> [u8; 2] {
     let (u, v) = octahedral_uv(w);
     [snorm8(u), snorm8(v)]
@@ -183,6 +184,26 @@ mod tests {
         }
         assert_eq!(octahedral_decode(octahedral_encode(Vec3::ZERO)), Vec3::Z);
         assert_eq!(octahedral_decode(octahedral_encode(Vec3::NAN)), Vec3::Z);
+    }
+
+    #[test]
+    fn octahedral8_round_trip_within_its_stated_error_and_every_code_is_unit() {
+        let mut rng = SplitMix64(5);
+        let mut worst = 0.0f32;
+        for _ in 0..200_000 {
+            let w = rng.unit_vector();
+            worst = worst.max(octahedral_decode8(octahedral_encode8(w)).cross(w).length());
+        }
+        assert!(worst < 1.66e-2, "worst angular error {worst}");
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z] {
+            assert_eq!(octahedral_decode8(octahedral_encode8(axis)), axis);
+        }
+        for a in 0..=255u8 {
+            for b in 0..=255u8 {
+                let d = octahedral_decode8([a, b]);
+                assert!(d.is_finite() && (d.length() - 1.0).abs() < 1e-6, "{a},{b} -> {d}");
+            }
+        }
     }
 
     #[test]
