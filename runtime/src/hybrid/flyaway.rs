@@ -18,7 +18,7 @@ use glam::Vec3;
 
 use super::error::{ModelError, TableKind};
 use super::lobe::BrdfTable;
-use super::packing::{octahedral_decode, octahedral_encode, unorm16, unorm16_value};
+use super::packing::{octahedral_decode, octahedral_encode, unorm8, unorm16, unorm16_value};
 
 /// End of a list.
 pub const NO_NODE: u32 = u32::MAX;
@@ -75,7 +75,6 @@ impl PackedAxisSpread {
         let pi = std::f32::consts::PI;
         let theta = if roll.is_finite() { roll.rem_euclid(pi) } else { 0.0 };
         let code = ((theta / pi) * 65536.0).round().min(65535.0) as u16;
-        let unorm8 = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 };
         let l2 = unorm8(lambda2);
         let l3 = unorm8(lambda3).min(255 - l2);
         PackedAxisSpread { roll: code, lambda: [l2, l3], slab: [0, 255], reserved: 0 }
@@ -132,7 +131,6 @@ impl PackedAxisGroup {
 
     /// Packs axis `b` (need not be unit), share `w` and spread `s` (both clamped to [0, 1]).
     pub fn new(b: Vec3, share: f32, spread: f32) -> PackedAxisGroup {
-        let unorm8 = |v: f32| if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 };
         PackedAxisGroup { axis: super::packing::octahedral_encode8(b), share: unorm8(share), spread: unorm8(spread) }
     }
 

@@ -43,6 +43,12 @@ pub fn unorm16(v: f32) -> u16 {
     (v * 65535.0 + 0.5) as u16
 }
 
+/// [0, 1] → unorm8 (clamped; NaN and ±∞ → 0).
+#[inline]
+pub fn unorm8(v: f32) -> u8 {
+    if v.is_finite() { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 0 }
+}
+
 /// unorm16 → [0, 1].
 #[inline]
 pub fn unorm16_value(code: u16) -> f32 {
