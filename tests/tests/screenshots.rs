@@ -161,3 +161,39 @@ fn baked_twill_under_the_built_in_sky() {
     assert!(rmse < 1e-3, "GPU vs CPU under the sky: {rmse}");
     check_golden("hybrid-twill-sky-tile", &gpu, 2.0, TOLERANCE).unwrap();
 }
+
+/// The baked felt and satin seen from afar at a grazing angle: the periodic sheet at
+/// 6 texels per pixel across and 15 along the view, so every pixel reads the coarse
+/// levels (their view tilts, compact records, and coarse flyaways with spread records
+/// and two axis groups, format 1.8) through the box filter. The GPU image is the golden;
+/// the CPU twin draws the same.
+#[test]
+fn baked_presets_seen_from_afar() {
+    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode, render};
+    use fabric_runtime::gpu::HybridPass;
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models");
+    let light = Light::directional(direction_from_angles(40.0, 200.0), Vec3::splat(2.0));
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
+    for preset in ["felt", "satin"] {
+        let model = fabric_runtime::hybrid::format::read_file(&dir.join(format!("{preset}.hyb"))).unwrap();
+        // What the view is meant to exercise is in the file.
+        let coarse = &model.levels[2];
+        let fly = coarse.flyaways.as_ref().expect("coarse flyaways");
+        assert!(coarse.view_tilt.is_some() && fly.spreads.is_some(), "{preset}: view tilts and spread records");
+        assert!(fly.groups.as_ref().is_some_and(|g| g.iter().any(|g| g.share() > 0.0)), "{preset}: axis groups");
+        let g = pass.upload(&model, true).unwrap();
+        let b = model.bounds();
+        let top = Vec3::new(b.center().x, b.center().y, b.max.z);
+        let cam = Camera::orbit_orthographic(65.0, 30.0, top, 16.0 * b.size().length(), 16.0 * b.size().x, 160, 120);
+        let frame = pass.render(&g, &cam, &[light], &opts, None).unwrap();
+        let (cpu, cpu_stats) = fabric_runtime::cpu::render_with_stats(&model, &cam, &[light], &opts).unwrap();
+        let coarse_pixels = |l: &[u64]| l.iter().skip(1).sum::<u64>() as f64 / l.iter().sum::<u64>().max(1) as f64;
+        assert!(coarse_pixels(&frame.stats.level_pixels) > 0.9, "{preset}: GPU levels {:?}", frame.stats.level_pixels);
+        assert!(coarse_pixels(&cpu_stats.level_pixels) > 0.9, "{preset}: CPU levels {:?}", cpu_stats.level_pixels);
+        let rmse = fabric_runtime::metrics::relative_rmse(&frame.image, &cpu).unwrap();
+        assert!(rmse < 1e-3, "{preset}: GPU vs CPU from afar: {rmse}");
+        check_golden(&format!("hybrid-{preset}-far"), &frame.image, 2.0, TOLERANCE).unwrap();
+    }
+}
