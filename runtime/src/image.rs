@@ -21,12 +21,12 @@ pub struct Image {
 
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
-    #[error("{path}: cannot encode or decode PNG: {source}")]
-    Png { path: PathBuf, source: image::ImageError },
-    #[error("{path}: cannot encode or decode EXR: {source}")]
-    Exr { path: PathBuf, source: exr::error::Error },
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
+    #[error("{path}: cannot encode or decode PNG: {error}")]
+    Png { path: PathBuf, error: image::ImageError },
+    #[error("{path}: cannot encode or decode EXR: {error}")]
+    Exr { path: PathBuf, error: exr::error::Error },
     #[error("{path}: unknown image extension (use .exr or .png)")]
     UnknownFormat { path: PathBuf },
     #[error("{path}: pixel ({x}, {y}) is {value} (NaN or Inf); refusing to write a broken image")]
@@ -99,18 +99,18 @@ impl Image {
             return Err(ImageError::NonFinite { path: path.into(), x, y, value });
         }
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| ImageError::Io { path: dir.into(), source })?;
+            std::fs::create_dir_all(dir).map_err(|error| ImageError::Io { path: dir.into(), error })?;
         }
         match extension(path).as_deref() {
             Some("png") => image::save_buffer(path, &self.to_srgb8(exposure), self.width, self.height, image::ExtendedColorType::Rgb8)
-                .map_err(|source| ImageError::Png { path: path.into(), source }),
+                .map_err(|error| ImageError::Png { path: path.into(), error }),
             Some("exr") => {
                 let w = self.width as usize;
                 exr::prelude::write_rgb_file(path, w, self.height as usize, |x, y| {
                     let p = self.pixels[y * w + x];
                     (p.x, p.y, p.z)
                 })
-                .map_err(|source| ImageError::Exr { path: path.into(), source })
+                .map_err(|error| ImageError::Exr { path: path.into(), error })
             }
             _ => Err(ImageError::UnknownFormat { path: path.into() }),
         }
@@ -121,7 +121,7 @@ impl Image {
     pub fn read(path: &Path, exposure: f32) -> Result<Image, ImageError> {
         match extension(path).as_deref() {
             Some("png") => {
-                let img = image::open(path).map_err(|source| ImageError::Png { path: path.into(), source })?.to_rgb8();
+                let img = image::open(path).map_err(|error| ImageError::Png { path: path.into(), error })?.to_rgb8();
                 let (w, h) = img.dimensions();
                 let inv = if exposure > 0.0 { 1.0 / exposure } else { 1.0 };
                 let pixels = img.pixels().map(|p| Vec3::new(srgb_decode(p[0] as f32 / 255.0), srgb_decode(p[1] as f32 / 255.0), srgb_decode(p[2] as f32 / 255.0)) * inv).collect();
@@ -133,7 +133,7 @@ impl Image {
                     |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
                     |(w, _, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b),
                 )
-                .map_err(|source| ImageError::Exr { path: path.into(), source })?;
+                .map_err(|error| ImageError::Exr { path: path.into(), error })?;
                 let (w, h, pixels) = img.layer_data.channel_data.pixels;
                 if w == 0 || h == 0 || w > 65536 || h > 65536 {
                     return Err(ImageError::BadSize { path: path.into(), width: w, height: h });

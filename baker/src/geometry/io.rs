@@ -34,16 +34,16 @@ use super::{DensityScale, FlyawayVolume, FlyawayVoxel, Geometry, StageTime};
 
 #[derive(Debug, thiserror::Error)]
 pub enum GeometryIoError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
-    #[error("{path}: EXR: {source}")]
-    Exr { path: PathBuf, source: exr::error::Error },
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
+    #[error("{path}: EXR: {error}")]
+    Exr { path: PathBuf, error: exr::error::Error },
     #[error(transparent)]
     Image(#[from] ImageError),
-    #[error("{path}: PNG: {source}")]
-    Png { path: PathBuf, source: image::ImageError },
-    #[error("{path}: JSON: {source}")]
-    Json { path: PathBuf, source: serde_json::Error },
+    #[error("{path}: PNG: {error}")]
+    Png { path: PathBuf, error: image::ImageError },
+    #[error("{path}: JSON: {error}")]
+    Json { path: PathBuf, error: serde_json::Error },
     #[error("{path}: {reason}")]
     Format { path: PathBuf, reason: String },
 }
@@ -150,7 +150,7 @@ impl Geometry {
 
     /// Writes `geometry.json` and the data files into `dir` (created if missing).
     pub fn write_dir(&self, dir: &Path, sigma_per_filter_size: f32) -> Result<GeometryReport, GeometryIoError> {
-        std::fs::create_dir_all(dir).map_err(|source| GeometryIoError::Io { path: dir.into(), source })?;
+        std::fs::create_dir_all(dir).map_err(|error| GeometryIoError::Io { path: dir.into(), error })?;
         let report = self.report(sigma_per_filter_size);
         let [nx, ny] = self.dims;
         write_scalar_exr(&dir.join(&report.files.h0), nx, ny, &self.h0)?;
@@ -161,16 +161,16 @@ impl Geometry {
         vector_image(nx, ny, &self.tangents).write(&dir.join(&report.files.tangents), 1.0)?;
         write_flyaways(&dir.join(&report.files.flyaways), &self.flyaways)?;
         let path = dir.join("geometry.json");
-        let json = serde_json::to_string_pretty(&report).map_err(|source| GeometryIoError::Json { path: path.clone(), source })?;
-        std::fs::write(&path, json).map_err(|source| GeometryIoError::Io { path, source })?;
+        let json = serde_json::to_string_pretty(&report).map_err(|error| GeometryIoError::Json { path: path.clone(), error })?;
+        std::fs::write(&path, json).map_err(|error| GeometryIoError::Io { path, error })?;
         Ok(report)
     }
 
     /// Reads what [`Geometry::write_dir`] wrote.
     pub fn read_dir(dir: &Path) -> Result<Geometry, GeometryIoError> {
         let path = dir.join("geometry.json");
-        let text = std::fs::read_to_string(&path).map_err(|source| GeometryIoError::Io { path: path.clone(), source })?;
-        let r: GeometryReport = serde_json::from_str(&text).map_err(|source| GeometryIoError::Json { path: path.clone(), source })?;
+        let text = std::fs::read_to_string(&path).map_err(|error| GeometryIoError::Io { path: path.clone(), error })?;
+        let r: GeometryReport = serde_json::from_str(&text).map_err(|error| GeometryIoError::Json { path: path.clone(), error })?;
         let bad = |reason: String| GeometryIoError::Format { path: path.clone(), reason };
         if r.format != REPORT_FORMAT || r.version != REPORT_VERSION {
             return Err(bad(format!("format {:?} version {} (expected {REPORT_FORMAT:?} version {REPORT_VERSION})", r.format, r.version)));
@@ -236,7 +236,7 @@ fn write_scalar_exr(path: &Path, nx: usize, ny: usize, values: &[f32]) -> Result
         return Err(GeometryIoError::Format { path: path.into(), reason: format!("texel ({}, {}) is {} (not finite); refusing to write", k % nx, k / nx, values[k]) });
     }
     let channels = SpecificChannels::build().with_channel("Y").with_pixel_fn(|p: Vec2<usize>| (values[p.x() + nx * p.y()],));
-    Image::from_channels((nx, ny), channels).write().to_file(path).map_err(|source| GeometryIoError::Exr { path: path.into(), source })
+    Image::from_channels((nx, ny), channels).write().to_file(path).map_err(|error| GeometryIoError::Exr { path: path.into(), error })
 }
 
 fn read_scalar_exr(path: &Path, nx: usize, ny: usize) -> Result<Vec<f32>, GeometryIoError> {
@@ -250,7 +250,7 @@ fn read_scalar_exr(path: &Path, nx: usize, ny: usize) -> Result<Vec<f32>, Geomet
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|source| GeometryIoError::Exr { path: path.into(), source })?;
+        .map_err(|error| GeometryIoError::Exr { path: path.into(), error })?;
     let size = image.layer_data.size;
     if (size.width(), size.height()) != (nx, ny) {
         return Err(GeometryIoError::Format { path: path.into(), reason: format!("is {}x{}, expected {nx}x{ny}", size.width(), size.height()) });
@@ -292,12 +292,12 @@ pub fn write_flyaways(path: &Path, v: &FlyawayVolume) -> Result<(), GeometryIoEr
         }
         bytes.extend_from_slice(&0u32.to_le_bytes());
     }
-    std::fs::write(path, bytes).map_err(|source| GeometryIoError::Io { path: path.into(), source })
+    std::fs::write(path, bytes).map_err(|error| GeometryIoError::Io { path: path.into(), error })
 }
 
 /// Reads `flyaways.bin`, checking it against the expected volume dims.
 pub fn read_flyaways(path: &Path, dims: [usize; 3]) -> Result<FlyawayVolume, GeometryIoError> {
-    let bytes = std::fs::read(path).map_err(|source| GeometryIoError::Io { path: path.into(), source })?;
+    let bytes = std::fs::read(path).map_err(|error| GeometryIoError::Io { path: path.into(), error })?;
     parse_flyaways(&bytes, dims).map_err(|reason| GeometryIoError::Format { path: path.into(), reason })
 }
 

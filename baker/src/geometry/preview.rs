@@ -19,7 +19,7 @@ use super::io::GeometryIoError;
 
 /// Writes all previews into `dir`; returns the paths written.
 pub fn write_previews(g: &Geometry, dir: &Path) -> Result<Vec<PathBuf>, GeometryIoError> {
-    std::fs::create_dir_all(dir).map_err(|source| GeometryIoError::Io { path: dir.into(), source })?;
+    std::fs::create_dir_all(dir).map_err(|error| GeometryIoError::Io { path: dir.into(), error })?;
     let [nx, ny] = g.dims;
     let [lo, hi] = Geometry::range(&g.h0);
     let span = (hi - lo).max(1e-6);
@@ -53,7 +53,7 @@ fn to_rgb8(v: Vec3) -> Rgb<u8> {
 }
 
 fn save(img: &RgbImage, path: &Path) -> Result<PathBuf, GeometryIoError> {
-    img.save(path).map_err(|source| GeometryIoError::Png { path: path.into(), source })?;
+    img.save(path).map_err(|error| GeometryIoError::Png { path: path.into(), error })?;
     Ok(path.into())
 }
 

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum VolumeError {
     /// An operating-system error on `path`.
-    #[error("{path}: {source}", path = .path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {error}", path = .path.display())]
+    Io { path: PathBuf, error: std::io::Error },
 
     /// The file does not start with the bytes `VOL`.
     #[error("{path}: not a Mitsuba grid volume: starts with {found:?}, expected the bytes \"VOL\"", path = .path.display())]
@@ -81,7 +81,7 @@ pub(crate) fn fmt_dims(d: &[i64; 3]) -> String {
 }
 
 impl VolumeError {
-    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> VolumeError {
-        VolumeError::Io { path: path.into(), source }
+    pub(crate) fn io(path: impl Into<PathBuf>, error: std::io::Error) -> VolumeError {
+        VolumeError::Io { path: path.into(), error }
     }
 }
