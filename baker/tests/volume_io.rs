@@ -269,8 +269,10 @@ fn malformed_fabrics_get_errors_that_name_the_file_and_the_voxel() {
         assert!(e.contains(file) && e.contains(msg), "{name}: got \"{e}\", expected {file}: \"{msg}\"");
     }
     // The orientation of an empty voxel (ρ = 0 at index 1) is not used: zero is fine.
+    assert_eq!(rho[1], 0.0, "voxel 1 is the empty one");
     write_fabric(&d, &vol(1, &rho), &vol(3, &alb), &vol(3, &with(4, 0.0, &ori)));
-    assert!(load_fabric(&d, &MaterialOverrides::default()).is_ok());
+    let v = load_fabric(&d, &MaterialOverrides::default()).expect("a zero orientation in an empty voxel loads");
+    assert!(v.voxel(1, 0, 0).is_empty() && !v.voxel(0, 0, 0).is_empty(), "densities as written");
 
     std::fs::remove_file(d.join("albedo.vol")).unwrap();
     let e = load_fabric(&d, &MaterialOverrides::default()).unwrap_err().to_string();
@@ -279,7 +281,8 @@ fn malformed_fabrics_get_errors_that_name_the_file_and_the_voxel() {
     std::fs::write(d.join("material.toml"), "roughness = -2\n").unwrap();
     let e = load_fabric(&d, &MaterialOverrides::default()).unwrap_err().to_string();
     assert!(e.contains("material.toml") && e.contains("roughness = -2"), "{e}");
-    assert!(load_fabric(&d, &MaterialOverrides { roughness: Some(0.2), ..Default::default() }).is_ok(), "the flag overrides the bad key");
+    let v = load_fabric(&d, &MaterialOverrides { roughness: Some(0.2), ..Default::default() }).expect("the flag overrides the bad key");
+    assert_eq!(v.material.roughness, 0.2);
     let e = load_fabric(&d.join("density.vol"), &MaterialOverrides::default()).unwrap_err().to_string();
     assert!(e.contains("not a fabric directory"), "{e}");
 }

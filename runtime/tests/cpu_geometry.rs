@@ -119,7 +119,8 @@ fn tilted_plane_hits_match_the_exact_ray_plane_intersection() {
                 // Rays enter through the tile's top face only (as the GPU's top mesh).
                 let entry = o + d * ((1.0 - o.z) / d.z);
                 if entry.x < 1e-3 || entry.x > 1.0 - 1e-3 || entry.y < 1e-3 || entry.y > 1.0 - 1e-3 {
-                    assert!(got.is_none() || entry.x.min(entry.y) > -1e-3, "entered outside the tile");
+                    let outside = entry.x < -1e-3 || entry.x > 1.0 + 1e-3 || entry.y < -1e-3 || entry.y > 1.0 + 1e-3;
+                    assert!(!outside || got.is_none(), "view ({theta}, {phi}) pixel ({px}, {py}): entered outside the tile at {entry:?} and hit");
                     continue;
                 }
                 let got = got.unwrap_or_else(|| panic!("view ({theta}, {phi}) pixel ({px}, {py}): missed the plane at t = {t}"));

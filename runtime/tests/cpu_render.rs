@@ -313,8 +313,14 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
     }
     assert!(checked > 300, "{checked} pixels through the voxel");
     // Straight down the path is s₁: opacity = 1 − ½^(s₁/edge), edge = (0.125²·0.02)^(1/3)
-    // = 0.06786, so 1 − ½^0.29472 = 0.18477 (worked by hand).
-    assert!((1.0 - 0.5f32.powf(s1 / edge) - 0.18477).abs() < 1e-4);
+    // = 0.06786, so 1 − ½^0.29472 = 0.18477 (worked by hand): what the renderer gives a
+    // ray down the voxel's middle (α is stored as unorm16 of 0.5, exact to 1e-5).
+    let cam = Camera { origin: Vec3::new(0.44, 0.56, 2.0), target: Vec3::new(0.44, 0.56, 0.0), up: Vec3::Y, projection: Projection::Orthographic { extent: 0.3 }, width: 8, height: 8 };
+    let lights = [light];
+    let scene = Scene::new(&m, &cam, &lights, CpuRenderOptions { level: LevelChoice::Fixed(1), ..Default::default() }).unwrap();
+    let down = scene.trace_ray(&fabric_runtime::scene::Ray::new(Vec3::new(0.4375, 0.5625, 1.0), -Vec3::Z), 1);
+    assert!((down.flyaway_opacity - 0.18477).abs() < 1e-4, "straight down: opacity {}", down.flyaway_opacity);
+    assert!((1.0 - 0.5f32.powf(s1 / edge) - 0.18477).abs() < 1e-4, "the hand-worked edge");
 }
 
 #[test]

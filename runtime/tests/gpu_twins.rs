@@ -282,12 +282,17 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6))
             }
         };
-        // Per kind: an error above 1e-4 counts as a mismatch (a different branch taken,
-        // or more than a few ulps).
-        if err > 1e-4 {
+        // A NaN anywhere in the GPU's outputs is a mismatch: the max chains above drop NaN
+        // operands, and the CPU twin writes none.
+        let gpu_nan = [g.x, g.y, g.z, g.w].iter().flatten().any(|v| v.is_nan());
+        let err = if gpu_nan { f32::INFINITY } else { err };
+        // Per kind: an error above 1e-4 (or NaN) counts as a mismatch (a different branch
+        // taken, or more than a few ulps).
+        let agrees = err <= 1e-4;
+        if !agrees {
             mismatches[k] += 1;
         }
-        worst[k] = worst[k].max(if err > 1e-4 { 0.0 } else { err });
+        worst[k] = worst[k].max(if agrees { err } else { 0.0 });
     }
     println!("marches: {hits} hits and {limits} step limits of {per_kind} rays, {crossed} of {per_kind} flyaway marches cross a voxel");
     assert!(hits > per_kind / 4 && limits > 0 && crossed > per_kind / 4, "inputs too easy: {hits} hits, {limits} limits, {crossed} crossings");

@@ -51,7 +51,9 @@ fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
     for (q, g) in queries.iter().zip(&got) {
         let b = model.levels[q.texel[0] as usize].texel_brdf(q.texel[1], q.texel[2]);
         let want = texel_response(&b, glam::Vec4::from(q.wi).truncate(), glam::Vec4::from(q.wo).truncate(), model.meta.reading, model.meta.diffuse);
+        assert!(g.iter().all(|v| v.is_finite()), "texel {:?}: the kit's response {g:?} is not finite", q.texel);
         let e = (want - glam::Vec4::from(*g).truncate()).abs().max_element() / want.max_element().max(1e-6);
+        assert!(!e.is_nan(), "texel {:?}: NaN against {want}", q.texel);
         worst = worst.max(e);
     }
     println!("{} texels over {} levels: worst relative difference {worst:.1e}", queries.len(), model.levels.len());

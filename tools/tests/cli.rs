@@ -184,7 +184,16 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
     let o = fabric().arg("inspect").arg(&model).arg("--json").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("inspect --json prints JSON");
-    assert!(v.is_object());
+    let written = fabric_runtime::hybrid::examples::synthetic_model(64, 7);
+    let m = &v["model"];
+    assert!(m["width"] == 64 && m["height"] == 64 && m["levels"] == written.levels.len(), "{m}");
+    let stats = m["level_stats"].as_array().expect("level_stats");
+    assert_eq!(stats.len(), written.levels.len());
+    for (l, s) in written.levels.iter().zip(stats) {
+        assert_eq!(s["resolution"], format!("{}x{}", l.width, l.height), "{s}");
+        assert!(s["bytes"].as_u64().is_some_and(|b| b > 0) && s["max_lobes"].as_u64().is_some_and(|n| (1..=8).contains(&n)), "{s}");
+    }
+    assert_eq!(v["file_size"], std::fs::metadata(&model).unwrap().len());
     // A corrupt model is a clear error.
     let mut bytes = std::fs::read(&model).unwrap();
     let n = bytes.len();

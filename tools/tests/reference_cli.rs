@@ -59,10 +59,13 @@ fn reference_renders_deterministically_and_diff_measures_it() {
     let o = fabric().arg("diff").arg(&a).arg(&c).args(["--json", "--diff-image"]).arg(tmp("d.png")).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // The command's figure is the library's metric of the two images (8 spp apart: noise).
     let rel = r["relative_rmse"].as_f64().unwrap();
-    assert!(rel > 0.0 && rel < 2.0, "{r}");
+    let want = fabric_runtime::metrics::relative_rmse(&ia, &ic).unwrap();
+    assert!((rel - want).abs() <= 1e-6 * want.max(1e-6), "diff says {rel}, the metric {want}: {r}");
     assert!(r["flip_mean"].as_f64().unwrap() > 0.0);
-    assert!(Image::read(&tmp("d.png"), 1.0).is_ok());
+    let d = Image::read(&tmp("d.png"), 1.0).unwrap();
+    assert!(d.width == 24 && d.height == 24 && d.mean() > 0.0, "the difference image: {}x{}, mean {}", d.width, d.height, d.mean());
     let o = fabric().arg("diff").arg(&a).arg(&b).arg("--json").output().unwrap();
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(r["relative_rmse"].as_f64().unwrap(), 0.0);

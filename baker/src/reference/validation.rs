@@ -310,7 +310,7 @@ fn large_fabric_renders_within_memory_budget() {
     let traced = TracedMedium::new(&v, MediumOptions { periodic: true, ..Default::default() }).unwrap();
     let camera = Camera::orbit_orthographic(30.0, 20.0, Vec3::new(2.0, 2.0, 0.5), 4.0, 4.0, 64, 64);
     let (img, stats) = render(&traced, &camera, &Lighting::from(&Light::directional(direction_from_angles(40.0, -60.0), Vec3::ONE)), &RenderSettings { spp: 2, ..Default::default() }, None).unwrap();
-    let peak = peak_rss_bytes().unwrap_or(0);
+    let peak = peak_rss_bytes().expect("the peak RSS (VmHWM in /proc/self/status)");
     eprintln!("1024x1024x128: packed volume {:.2} GB, peak RSS {:.2} GB, {:.0} paths/s, mean {}", v.memory_bytes() as f64 / 1e9, peak as f64 / 1e9, stats.paths_per_second(), img.mean());
     assert!(img.mean() > 0.0 && img.first_non_finite().is_none());
     assert!(peak < 24 * (1 << 30), "peak RSS {peak} bytes exceeds 24 GiB");
