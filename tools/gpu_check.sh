@@ -10,7 +10,7 @@
 # Build first (here or on a machine with the same system libraries):
 #   cargo build --release --locked -p fabric-tools
 #   cargo build --release --locked -p fabric-runtime --example bench_gpu_render
-#   cargo test --release --locked -p fabric-runtime --test gpu_twins --test gpu_hybrid --no-run
+#   cargo test --release --locked -p fabric-runtime --test gpu_twins --test gpu_hybrid --test gpu_mesh --no-run
 #   cargo test --release --locked -p fabric-tests --test screenshots --no-run
 # BIN_DIR (default target/release) holds fabric and examples/bench_gpu_render; the test
 # binaries are found under BIN_DIR/deps. runtime/GPU_MEASUREMENTS.md ("On a discrete
@@ -52,7 +52,8 @@ if [ $tests = 1 ]; then
     # The newest build of each test binary (cargo names them name-HASH).
     newest() { ls -t "$bin"/deps/"$1"-* 2>/dev/null | grep -v '\.d$' | head -1; }
     export FABRIC_VALIDATION=1 FABRIC_REQUIRE_VALIDATION=1
-    for t in gpu_twins gpu_hybrid screenshots; do
+    # gpu_mesh first: it fails when FABRIC_REQUIRE_VALIDATION is set and the layer is missing.
+    for t in gpu_mesh gpu_twins gpu_hybrid screenshots; do
         exe=$(newest $t)
         if [ -n "$exe" ]; then step "$exe"; else say "no test binary $t under $bin/deps: skipped"; fi
     done

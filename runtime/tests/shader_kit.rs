@@ -41,7 +41,7 @@ fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
     }
     let mut buffers: Vec<Buffer> = arrays.arrays().iter().map(|(name, bytes)| support::storage(&device, name, bytes)).collect();
     // Bindings 7 and 8 (frame parameters, edit mask) are declared, not read.
-    buffers.push(support::storage(&device, "unused params", &[0u8; 416]));
+    buffers.push(support::storage(&device, "unused params", &[0u8; std::mem::size_of::<fabric_runtime::hybrid::gpu_layout::GpuRenderParams>()]));
     buffers.push(support::storage(&device, "unused mask", &[0u8; 4]));
     buffers.push(support::storage(&device, "queries", bytemuck::cast_slice(&queries)));
     let refs: Vec<&Buffer> = buffers.iter().collect();

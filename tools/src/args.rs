@@ -79,8 +79,9 @@ pub struct CameraArgs {
 /// texture, and the device to draw it on.
 #[derive(Args, Clone, Debug)]
 pub struct MeshSceneArgs {
-    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file (default: sphere;
-    /// with a hybrid model, the fabric is drawn on it, tiled over its UVs).
+    /// Base mesh: plane, sphere, cylinder, or a path to an .obj file; with a hybrid model
+    /// the fabric is drawn on it, tiled over its UVs (default: sphere without a model;
+    /// `view` with a model: plane; `render` with a model and no mesh draws its tile).
     #[arg(long)]
     pub mesh: Option<String>,
     /// Colour multiplying the mesh's checker texture (V or R,G,B, linear).
