@@ -39,7 +39,8 @@ LevelMix choose_levels(float z) {
     return level_mix(g_pixel.x, g_pixel.y, z);
 }
 
-// One pixel: s x s samples on a regular grid, levels from the pixel centre's footprint.
+// One pixel: s x s samples on a regular grid, levels from the pixel centre's footprint
+// over s (each sample filters its own sub-pixel; level_mix).
 PixelTrace trace_pixel(uint x, uint y) {
     float cx = float(x) + 0.5;
     float cy = float(y) + 0.5;

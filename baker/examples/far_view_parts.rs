@@ -35,9 +35,11 @@ fn views(model: &HybridModel, pixels: u32, label: &str) {
         let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
         let chain_ss = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 8)).unwrap();
+        let chain_2 = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 2)).unwrap();
         let e = relative_rmse(&chain, &truth).unwrap();
         let e_ss = relative_rmse(&chain_ss, &truth).unwrap();
-        println!("{label} {pixels}px polar {polar:>4}: chain {:.1}%  chain 8x8spp {:.1}% (mean {:.3})  mean chain/truth {:.3}", 100.0 * e, 100.0 * e_ss, mean(&chain_ss) / mean(&truth), mean(&chain) / mean(&truth));
+        let e_2 = relative_rmse(&chain_2, &truth).unwrap();
+        println!("{label} {pixels}px polar {polar:>4}: chain {:.1}%  chain 2x2spp {:.1}%  chain 8x8spp {:.1}% (mean {:.3})  mean chain/truth {:.3}", 100.0 * e, 100.0 * e_2, 100.0 * e_ss, mean(&chain_ss) / mean(&truth), mean(&chain) / mean(&truth));
         if std::env::var("LEVELS").is_ok() {
             for level in 0..model.levels.len().min(6) {
                 let im = render(model, &camera, &light, &opt(LevelChoice::Fixed(level as u32), 8)).unwrap();

@@ -105,6 +105,9 @@ fn gpu_matches_the_cpu_twin() {
         Case { name: "sample grazing, periodic", camera: grazing, options: CpuRenderOptions { periodic: true, ..opts.clone() } },
         Case { name: "sample far, auto, periodic", camera: far, options: CpuRenderOptions { periodic: true, ..opts.clone() } },
         Case { name: "sample far, nearest, periodic", camera: far, options: CpuRenderOptions { periodic: true, level: LevelChoice::Nearest { bias: 0.0 }, ..opts.clone() } },
+        // Each sample filters its own sub-pixel (Scene::level_mix): the levels differ from
+        // one sample per pixel.
+        Case { name: "sample far, auto, periodic, 3x3 supersampled", camera: far, options: CpuRenderOptions { periodic: true, supersampling: 3, ..opts.clone() } },
         Case { name: "sample level 2, no shadows", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(2), shadows: ShadowMode::Off, ..opts.clone() } },
     ];
     for case in &cases {

@@ -256,11 +256,14 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     return m;
 }
 
-// The levels that shade pixel (px, py) when its ray meets the surface at height z.
+// The levels that shade pixel (px, py) when its ray meets the surface at height z;
+// with s x s samples per pixel each sample filters its own sub-pixel, 1/s of the
+// pixel's footprint across. Twin: Scene::level_mix.
 LevelMix level_mix(float px, float py, float z) {
     vec2 a, b;
     bool ok = footprint_axes_at(px, py, z, a, b);
-    return level_mix_axes(ok, a, b);
+    float k = 1.0 / float(max(params.supersampling, 1u));
+    return level_mix_axes(ok, a * k, b * k);
 }
 
 #endif // LEVEL_GLSL

@@ -114,7 +114,8 @@ pub struct CpuRenderOptions {
     pub max_steps: u32,
     /// Budget of flyaway columns per camera ray.
     pub max_flyaway_columns: u32,
-    /// s×s camera rays per pixel on a regular grid (1..=16).
+    /// s×s camera rays per pixel on a regular grid (1..=16); at automatic levels each
+    /// filters its own sub-pixel (`Scene::level_mix`).
     pub supersampling: u32,
     /// Radiance where rays miss the tile.
     pub background: Vec3,

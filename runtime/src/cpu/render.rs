@@ -316,11 +316,17 @@ impl<'a> Scene<'a> {
     }
 
     /// The levels that shade pixel (px, py) when its ray meets the surface at height `z`.
+    /// With s × s samples per pixel each sample filters its own sub-pixel, 1/s of the
+    /// pixel's footprint across: the samples then add up to the pixel's box, and more of
+    /// them converge on the supersampled truth. (Each sample filtering the whole pixel,
+    /// as until 2026-12, blurred the box over the sample grid: satin's 16 px far view at
+    /// 45° was 14.1% off with 8 × 8 samples against 9.7% with one.)
     pub fn level_mix(&self, px: f32, py: f32, z: f32) -> LevelMix {
         if let LevelChoice::Fixed(l) = self.options.level {
             return LevelMix::single(l as usize);
         }
-        self.level_mix_axes(self.footprint_axes_at(px, py, z))
+        let k = 1.0 / self.options.supersampling.max(1) as f32;
+        self.level_mix_axes(self.footprint_axes_at(px, py, z).map(|(a, b)| (a * k, b * k)))
     }
 
     /// The levels for a footprint with axes (a, b) — world x–y steps to where the next

@@ -29,7 +29,9 @@ pub struct CpuRenderFlags {
     /// Height-field shadowing: "model" (as the model was fitted), "on" or "off".
     #[arg(long, default_value = "model", value_parser = ["model", "on", "off"])]
     pub shadows: String,
-    /// s×s camera rays per pixel on a regular grid (1..=16).
+    /// s×s camera rays per pixel on a regular grid (1..=16); at automatic levels each
+    /// filters its own sub-pixel, so far views converge on the supersampled level 0 (2×2:
+    /// the presets' far views about halved, baker/PREFILTER_MEASUREMENTS.md).
     #[arg(long, default_value_t = 1)]
     pub supersample: u32,
     /// Height-field traversal steps per ray before giving up.
