@@ -423,3 +423,39 @@ fn supersampled_far_views_converge_on_the_supersampled_level_0() {
     println!("far view, chain against supersampled level 0: 1 spp {:.2}%, 2x2 {:.2}%, 8x8 {:.2}%", 100.0 * e1, 100.0 * e2, 100.0 * e8);
     assert!(e2 < e1 && e8 < 0.5 * e2, "no convergence: {e1} / {e2} / {e8}");
 }
+
+#[test]
+fn a_flyaway_grid_cell_holds_its_own_ray_and_lookups_keep_the_mean_transmittance() {
+    use fabric_runtime::cpu::render::{fly_cell, lookup_transmittances, tap_offset};
+    // Each ray's own offset lies in its own cell, for skewed and degenerate axes alike;
+    // points beyond the grid fall in its edge cells.
+    for (a, b) in [(Vec2::new(0.3, 0.0), Vec2::new(0.0, 0.1)), (Vec2::new(0.2, 0.15), Vec2::new(-0.05, 0.12)), (Vec2::new(0.1, 0.0), Vec2::ZERO), (Vec2::ZERO, Vec2::new(0.0, 0.4))] {
+        for (ta, tb) in [(1u32, 1u32), (4, 2), (8, 4), (2, 1)] {
+            for k in 0..ta * tb {
+                let o = tap_offset(a, ta, b, tb, k);
+                // With an empty axis, rays along it coincide: any of them will do.
+                let got = fly_cell(o, a, ta, b, tb);
+                assert!(got < ta * tb && (tap_offset(a, ta, b, tb, got) - o).length() < 1e-6, "axes {a} {b}, {ta}x{tb}, ray {k}: cell {got}");
+                if a != Vec2::ZERO && b != Vec2::ZERO {
+                    assert_eq!(got, k, "axes {a} {b}, {ta}x{tb}");
+                }
+            }
+            assert!(fly_cell(a * 3.0 + b * 3.0, a, ta, b, tb) < ta * tb);
+        }
+    }
+    assert_eq!(fly_cell(Vec2::new(10.0, 10.0), Vec2::X, 4, Vec2::Y, 2), 7);
+    assert_eq!(fly_cell(Vec2::new(-10.0, -10.0), Vec2::X, 4, Vec2::Y, 2), 0);
+    // Lookups behind the rays' gaps weigh more, their mean stays the pixel's.
+    let (fa, fb) = (Vec2::new(0.4, 0.0), Vec2::new(0.0, 0.2));
+    // The 2×2 lookups at x = ±0.1 fall in the rays' cells 1 and 3 (and 5, 7 across).
+    let fly_t = [0.0, 1.0, 0.0, 0.2, 0.0, 1.0, 0.0, 0.2];
+    let mean_t = fly_t.iter().sum::<f32>() / 8.0;
+    let offsets: Vec<Vec2> = (0..4).map(|k| tap_offset(Vec2::new(0.4, 0.0), 2, Vec2::new(0.0, 0.2), 2, k)).collect();
+    let t = lookup_transmittances(&offsets, &fly_t, (fa, fb), (4, 2), mean_t);
+    assert!((t.iter().sum::<f32>() / 4.0 - mean_t).abs() < 1e-6, "{t:?}");
+    assert!(t[0] > t[1] && t[2] > t[3], "the lookups over the open rays weigh more: {t:?}");
+    assert!((t[0] - 0.5).abs() < 1e-6 && (t[1] - 0.1).abs() < 1e-6, "{t:?}");
+    // Uniform flyaways, or none let through: the mean in front of every lookup.
+    assert!(lookup_transmittances(&offsets, &[0.3; 8], (fa, fb), (4, 2), 0.3).iter().all(|x| (x - 0.3).abs() < 1e-6));
+    assert!(lookup_transmittances(&offsets, &[0.0; 8], (fa, fb), (4, 2), 0.2).iter().all(|&x| x == 0.2));
+}

@@ -231,6 +231,31 @@ vec2 tap_offset(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint tap
     return axis * ((float(ka) + 0.5) / float(taps) - 0.5) + minor_axis * ((float(kb) + 0.5) / float(taps_minor) - 0.5);
 }
 
+// The ray of a flyaway grid (taps x taps_minor over axis, minor_axis, as tap_offset
+// places them) whose cell holds the point at `offset` from the grid's centre: its
+// coordinates along the two axes, clamped to the grid. Twin: fly_cell
+// (runtime/src/cpu/render.rs).
+uint fly_cell(vec2 offset, vec2 axis, uint taps, vec2 minor_axis, uint taps_minor) {
+    float det = axis.x * minor_axis.y - axis.y * minor_axis.x;
+    float s;
+    float r;
+    if (abs(det) > 1e-12 * max(dot(axis, axis), dot(minor_axis, minor_axis))) {
+        s = (offset.x * minor_axis.y - offset.y * minor_axis.x) / det;
+        r = (axis.x * offset.y - axis.y * offset.x) / det;
+    } else {
+        // Parallel or empty axes: along the longer one alone.
+        bool major = dot(axis, axis) >= dot(minor_axis, minor_axis);
+        vec2 a = major ? axis : minor_axis;
+        float u = dot(a, a) > 0.0 ? dot(offset, a) / dot(a, a) : 0.0;
+        s = major ? u : 0.0;
+        r = major ? 0.0 : u;
+    }
+    // A point on a cell border goes to the cell after it, whatever the rounding.
+    uint cs = min(uint(max(floor((s + 0.5) * float(taps) + 1e-3), 0.0)), max(taps, 1u) - 1u);
+    uint cr = min(uint(max(floor((r + 0.5) * float(taps_minor) + 1e-3), 0.0)), max(taps_minor, 1u) - 1u);
+    return cs + taps * cr;
+}
+
 // Most lookups of a box grid: MAX_ANISOTROPY along the major axis by the grid's G = 2.
 const uint MAX_SURFACE_TAPS = 16u;
 
@@ -239,7 +264,7 @@ const uint MAX_SURFACE_TAPS = 16u;
 // coarse levels corner k % 4 of the bilinear lookup at tap_xy[k / 4] (where that tap's
 // own ray meets the height field; p itself for one lookup), its frames turned by the
 // level's view tilt. Returns its weight.
-float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_w[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
+float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_w[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], uint n, uint k, out TexelRef r) {
     if (level == 0u) {
         // Level 0's grid (distinct texel k, at a lookup in it, with its lookups' summed
         // weight: level0_distinct) or the hit's texel.
@@ -254,7 +279,7 @@ float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], 
     // The tilt's visibility v is not used: each tap's own ray already sees the footprint
     // as a distant view does (Scene::shade_surface).
     seen_from(r, level, ij, wo);
-    return n <= 1u ? w : w / float(n);
+    return n <= 1u ? w : w * tap_t[k >> 2] / float(n);
 }
 
 // Level 0's grid of n lookups, each distinct texel once: its first lookup's place moved
@@ -264,7 +289,7 @@ float surface_texel(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], 
 // so that a SIMD group loops over the most texels one of its lanes has, not over every
 // lookup. The coarse grids' corners are shaded one by one (distinct texels there are 9
 // of 16, and finding them made frames slower on lavapipe).
-uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], out float tap_w[MAX_SURFACE_TAPS]) {
+uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], out float tap_w[MAX_SURFACE_TAPS]) {
     uvec2 seen[MAX_SURFACE_TAPS];
     float share = 1.0 / float(n);
     uint m = 0u;
@@ -277,10 +302,10 @@ uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], out fl
         if (k == m) {
             seen[m] = ij;
             tap_xy[m] = tap_xy[c];
-            tap_w[m] = share;
+            tap_w[m] = share * tap_t[c];
             ++m;
         } else {
-            tap_w[k] += share;
+            tap_w[k] += share * tap_t[c];
         }
     }
     return m;
@@ -288,14 +313,14 @@ uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], out fl
 
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
 // light's visibility once.
-vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, inout uint limited) {
+vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, inout uint limited) {
     uint reading = model_reading();
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
     uint count = level == 0u ? max(n, 1u) : 4u * n;
     float tap_w[MAX_SURFACE_TAPS];
     if (level == 0u && n > 1u) {
-        count = level0_distinct(p, n, tap_xy, tap_w);
+        count = level0_distinct(p, n, tap_xy, tap_t, tap_w);
     }
     vec3 radiance = vec3(0.0);
     for (uint k = 0u; k < LIGHT_COUNT; ++k) {
@@ -312,7 +337,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
                 vec3 through = vec3(0.0);
                 for (uint c = 0u; c < count; ++c) {
                     TexelRef r;
-                    float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
+                    float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
                     through += w * texel_transmission_response(r, e, true, wi, wo);
                 }
                 radiance += irradiance * through;
@@ -322,7 +347,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
         vec3 response = vec3(0.0);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
+            float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
             response += w * texel_response(r, e, true, wi, wo, reading, diffuse);
         }
         if (max3(response) <= 0.0) {
@@ -334,7 +359,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], uin
     if (HAS_ENV) {
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
-            float w = surface_texel(level, p, wo, tap_xy, tap_w, n, c, r);
+            float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
         }
     }

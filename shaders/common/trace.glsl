@@ -68,13 +68,41 @@ vec2 tap_surface_point(vec3 o, vec3 d, vec2 offset, vec3 p, int floor_level) {
     return hit.kind == HF_HIT ? (ro + d * hit.t).xy : beside;
 }
 
-// At level 0, tap_xy holds level 0's grid (mix_.fine_taps_*; one lookup: the hit's texel).
-vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_xy[MAX_SURFACE_TAPS], inout uint shadow_limited) {
+// At level 0, tap_xy holds level 0's grid (mix_.fine_taps_*; one lookup: the hit's texel);
+// tap_t scales each lookup's weight (what the flyaways let through in front of it).
+vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], inout uint shadow_limited) {
     vec3 p = o + t * d;
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
     uint n = level == 0u ? min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS) : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
-    return shade_blend(level, p, -d, tap_xy, n, shadowed, volumetric, shadow_limited);
+    return shade_blend(level, p, -d, tap_xy, tap_t, n, shadowed, volumetric, shadow_limited);
+}
+
+// Most rays of a flyaway grid: FLY_MAX_ANISOTROPY x FLY_FINE_GRID along the major axis by
+// FLY_FINE_GRID across.
+const uint MAX_FLY_RAYS = 32u;
+
+// What the flyaways let through in front of each of the n lookups of a surface grid (at
+// tap_offset(axis, taps, minor_axis, taps_minor, k) from the hit): the transmittance of
+// the flyaway ray whose cell holds it (fly_cell), scaled so that their mean is the
+// pixel's mean_t; mean_t for all where no lookup sees through. Twin:
+// lookup_transmittances (runtime/src/cpu/render.rs).
+void lookup_transmittances(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint n, float fly_t[MAX_FLY_RAYS], LevelMix mix_, float mean_t, out float tap_t[MAX_SURFACE_TAPS]) {
+    uint fga = max(mix_.fly_taps_a, 1u);
+    uint fgb = max(mix_.fly_taps_b, 1u);
+    float sum = 0.0;
+    for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
+        tap_t[k] = 1.0;
+        if (k < n) {
+            uint c = fly_cell(tap_offset(axis, taps, minor_axis, taps_minor, k), mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb);
+            tap_t[k] = c < MAX_FLY_RAYS ? fly_t[c] : mean_t;
+            sum += tap_t[k];
+        }
+    }
+    float mean = sum / float(max(n, 1u));
+    for (uint k = 0u; k < n; ++k) {
+        tap_t[k] = mean > 0.0 ? tap_t[k] * mean_t / mean : mean_t;
+    }
 }
 
 // One ray, shaded with the levels choose_levels gives where it meets the surface (the
@@ -143,6 +171,11 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     vec3 ray_radiance = vec3(0.0);
     float ray_transmittance = 0.0;
     float ray_end = t_end;
+    // Each grid ray's transmittance, in grid order (Scene::trace_mixed's fly_rays).
+    float fly_t[MAX_FLY_RAYS];
+    for (uint k = 0u; k < MAX_FLY_RAYS; ++k) {
+        fly_t[k] = 1.0;
+    }
     for (uint k = 0u; k < fga * fgb * fly_levels; ++k) {
         uint ray = k / fly_levels;
         uint lk = k % fly_levels;
@@ -159,6 +192,9 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         ray_transmittance = lk == 0u ? fly.transmittance * w : ray_transmittance + fly.transmittance * w;
         out_.step_limited = out_.step_limited || fly.limited;
         if (lk + 1u == fly_levels) {
+            if (ray < MAX_FLY_RAYS) {
+                fly_t[ray] = ray_transmittance;
+            }
             fly_radiance += ray_radiance * share;
             fly_transmittance += ray_transmittance * share;
         }
@@ -166,6 +202,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     out_.flyaway_opacity = 1.0 - fly_transmittance;
     // What they let through sees the surface, blended over its levels.
     vec3 behind = out_.radiance;
+    bool per_lookup = false;
     if (out_.surface) {
         behind = vec3(0.0);
         if (fly_transmittance > 0.0) {
@@ -195,15 +232,27 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                     fine_xy[k] = tap_surface_point(o, d, tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k), p, floor_level);
                 }
             }
+            // Each lookup seen through the flyaway ray whose cell holds it: where the
+            // flyaways leave a gap, the surface under it shows (Scene::trace_mixed).
+            per_lookup = fga * fgb > 1u;
+            float tap_t[MAX_SURFACE_TAPS];
+            float fine_t[MAX_SURFACE_TAPS];
+            bool coarse_grid = per_lookup && coarse && n > 1u;
+            bool fine_grid = per_lookup && mix_.lo == 0u && n0 > 1u;
+            lookup_transmittances(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, coarse_grid ? n : 0u, fly_t, mix_, fly_transmittance, tap_t);
+            lookup_transmittances(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, fine_grid ? n0 : 0u, fly_t, mix_, fly_transmittance, fine_t);
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
                 uint level = k == 0u ? mix_.lo : mix_.hi;
-                vec3 s = shade_surface(o, d, hit.t, level, mix_, level == 0u ? fine_xy : tap_xy, shadow_limited);
+                vec3 s = shade_surface(o, d, hit.t, level, mix_, level == 0u ? fine_xy : tap_xy, level == 0u ? fine_t : tap_t, shadow_limited);
+                // A level read without a grid: the mean transmittance in front of it.
+                bool weighted = level == 0u ? fine_grid : coarse_grid;
+                s = per_lookup && !weighted ? fly_transmittance * s : s;
                 behind = !blend ? s : (k == 0u ? s * (1.0 - mix_.weight) : behind + s * mix_.weight);
             }
         }
     }
     out_.shadow_step_limited = shadow_limited;
-    out_.radiance = fly_radiance + fly_transmittance * behind;
+    out_.radiance = fly_radiance + (per_lookup ? behind : fly_transmittance * behind);
     return out_;
 }
 

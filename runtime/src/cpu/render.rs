@@ -228,6 +228,40 @@ pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
     FlyGrid { lambda: finer, spread, taps_major: n.min(FLY_MAX_ANISOTROPY) * grid, taps_minor: grid }
 }
 
+/// The ray of a flyaway grid (`taps` × `taps_minor` over `axis`, `minor_axis`, as
+/// [`tap_offset`] places them) whose cell holds the point at `offset` from the grid's
+/// centre: its coordinates along the two axes, clamped to the grid.
+pub fn fly_cell(offset: Vec2, axis: Vec2, taps: u32, minor_axis: Vec2, taps_minor: u32) -> u32 {
+    // offset = axis·s + minor_axis·r, s and r in [−½, ½] over the grid.
+    let det = axis.x * minor_axis.y - axis.y * minor_axis.x;
+    let (s, r) = if det.abs() > 1e-12 * axis.length_squared().max(minor_axis.length_squared()) {
+        ((offset.x * minor_axis.y - offset.y * minor_axis.x) / det, (axis.x * offset.y - axis.y * offset.x) / det)
+    } else {
+        // Parallel or empty axes: along the longer one alone.
+        let (a, n) = if axis.length_squared() >= minor_axis.length_squared() { (axis, 0) } else { (minor_axis, 1) };
+        let u = if a.length_squared() > 0.0 { offset.dot(a) / a.length_squared() } else { 0.0 };
+        if n == 0 { (u, 0.0) } else { (0.0, u) }
+    };
+    // A point on a cell border (a surface grid's lookups often are: both grids are
+    // symmetric about the hit) goes to the cell after it, whatever the rounding: the
+    // border is moved a thousandth of a cell back, where nothing lies by symmetry.
+    let cell = |u: f32, n: u32| ((((u + 0.5) * n as f32) + 1e-3).floor().max(0.0) as u32).min(n.max(1) - 1);
+    cell(s, taps) + taps * cell(r, taps_minor)
+}
+
+/// What the flyaways let through in front of each lookup of a surface grid (`offsets`
+/// from the pixel's hit): the transmittance `fly_t` of the flyaway ray whose cell holds
+/// it ([`fly_cell`]; rays in [`tap_offset`] order over `fly_axes`, `fly_taps`), scaled so
+/// that their mean is the pixel's `mean_t` (the rays and the lookups spread differently,
+/// and unscaled the cells shift the mean: felt's 32 px view at 45° went from 6.1 to
+/// 17.4%). All `mean_t` where no lookup sees through. Twin: `lookup_transmittances` in
+/// shaders/common/trace.glsl.
+pub fn lookup_transmittances(offsets: &[Vec2], fly_t: &[f32], fly_axes: (Vec2, Vec2), fly_taps: (u32, u32), mean_t: f32) -> Vec<f32> {
+    let t: Vec<f32> = offsets.iter().map(|&o| fly_t.get(fly_cell(o, fly_axes.0, fly_taps.0, fly_axes.1, fly_taps.1) as usize).copied().unwrap_or(mean_t)).collect();
+    let mean = t.iter().sum::<f32>() / t.len().max(1) as f32;
+    if mean > 0.0 { t.iter().map(|x| x * mean_t / mean).collect() } else { vec![mean_t; t.len()] }
+}
+
 /// Rays per axis of the flyaways' grid under `CoarseFilter::Fine`: voxels a quarter of
 /// a round footprint, rays at their spacing. The presets' far views summed: 170.6
 /// points with 2 (the box filter), 154.3 with 3, 149.4 with 4, at 1.4–2× and 2–3× a
@@ -545,6 +579,9 @@ impl<'a> Scene<'a> {
         let ((ga, gb), (fa, fb)) = ((mix.fly_taps.0.max(1), mix.fly_taps.1.max(1)), mix.fly_axes);
         let share = 1.0 / (ga * gb) as f32;
         let mut fly = FlyShade { radiance: Vec3::ZERO, transmittance: 0.0, limited: false, shadow_limited: 0 };
+        // Each grid ray's transmittance (what it lets through of the surface where it
+        // lands), in grid order.
+        let mut fly_rays: Vec<f32> = Vec::new();
         for k in 0..ga * gb {
             let (r, t_end) = if ga * gb == 1 {
                 (*ray, t_end)
@@ -560,6 +597,9 @@ impl<'a> Scene<'a> {
                 f.limited |= hi.limited;
                 f.shadow_limited += hi.shadow_limited;
             }
+            if ga * gb > 1 {
+                fly_rays.push(f.transmittance);
+            }
             fly.radiance += f.radiance * share;
             fly.transmittance += f.transmittance * share;
             fly.limited |= f.limited;
@@ -569,6 +609,7 @@ impl<'a> Scene<'a> {
         out.step_limited |= fly.limited;
         out.shadow_step_limited = fly.shadow_limited;
         let mut behind = background;
+        let mut behind_weighted = false;
         if let Some(t) = out.surface_t {
             behind = Vec3::ZERO;
             if fly.transmittance > 0.0 {
@@ -584,17 +625,29 @@ impl<'a> Scene<'a> {
                 // 6.8%; twill had gained 0–0.4 points; baker/PREFILTER_MEASUREMENTS.md,
                 // "Level 0's lookups where their rays land").
                 let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(|k| self.tap_surface_point(ray, tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), ray.at(t), floor)).collect() } else { Vec::new() };
-                let (mut surface, mut limited) = self.shade_surface(ray, t, mix.lo, &mix, if mix.lo == 0 { &fine } else { &points });
+                // Each lookup seen through the flyaway ray whose cell holds it: where the
+                // flyaways leave a gap, the surface under it shows. The mean of the rays'
+                // transmittance times the mean of the lookups lost where gaps and bright
+                // surface go together (baker/PREFILTER_MEASUREMENTS.md, "The surface
+                // through the flyaways' gaps").
+                let per_lookup = !fly_rays.is_empty();
+                let through = |offsets: Vec<Vec2>| if per_lookup && !offsets.is_empty() { lookup_transmittances(&offsets, &fly_rays, (fa, fb), (ga, gb), fly.transmittance) } else { Vec::new() };
+                let coarse_t = through(if points.is_empty() { Vec::new() } else { (0..n * m).map(|k| tap_offset(mix.axis, n, mix.minor_axis, m, k)).collect() });
+                let fine_t = through(if fine.is_empty() { Vec::new() } else { (0..f0 * f1).map(|k| tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k)).collect() });
+                let lo_t = if mix.lo == 0 { &fine_t } else { &coarse_t };
+                let shade = |level: usize, points: &[Vec3], lookup_t: &[f32]| if per_lookup { self.shade_surface_t(ray, t, level, &mix, points, lookup_t, fly.transmittance) } else { self.shade_surface(ray, t, level, &mix, points, None) };
+                let (mut surface, mut limited) = shade(mix.lo, if mix.lo == 0 { &fine } else { &points }, lo_t);
                 if mix.weight > 0.0 && mix.hi != mix.lo {
-                    let (hi, l) = self.shade_surface(ray, t, mix.hi, &mix, &points);
+                    let (hi, l) = shade(mix.hi, &points, &coarse_t);
                     surface = surface * (1.0 - mix.weight) + hi * mix.weight;
                     limited += l;
                 }
                 behind = surface;
+                behind_weighted = per_lookup;
                 out.shadow_step_limited += limited;
             }
         }
-        out.radiance = fly.radiance + fly.transmittance * behind;
+        out.radiance = fly.radiance + if behind_weighted { behind } else { fly.transmittance * behind };
         out
     }
 
@@ -676,12 +729,24 @@ impl<'a> Scene<'a> {
         }
     }
 
+    /// [`Scene::shade_surface`] seen through the flyaways: `lookup_t` what they let
+    /// through in front of each lookup of `points` ([`lookup_transmittances`]; empty:
+    /// `mean_t` in front of all).
+    fn shade_surface_t(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix, points: &[Vec3], lookup_t: &[f32], mean_t: f32) -> (Vec3, u32) {
+        if lookup_t.len() != points.len() {
+            let (r, l) = self.shade_surface(ray, t, level, mix, points, None);
+            return (mean_t * r, l);
+        }
+        self.shade_surface(ray, t, level, mix, points, Some(lookup_t))
+    }
+
     /// The surface hit at ray parameter `t`, shaded with `level` (filtered as `mix`
     /// says at coarse levels; `points`: a box grid's lookups where their own rays meet
     /// the height field, [`Scene::tap_surface_point`]; at level 0, its grid's lookups,
-    /// empty for the hit's texel alone); returns the radiance and the
-    /// step-limited shadow rays.
-    fn shade_surface(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix, points: &[Vec3]) -> (Vec3, u32) {
+    /// empty for the hit's texel alone; `lookup_t`: each lookup's weight scaled by it);
+    /// returns the radiance and the step-limited shadow rays.
+    fn shade_surface(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix, points: &[Vec3], lookup_t: Option<&[f32]>) -> (Vec3, u32) {
+        let tw = |k: usize| lookup_t.map_or(1.0, |v| v[k]);
         let wo = -ray.d;
         let l = &self.model.levels[level];
         let mut shadow_limited = 0u32;
@@ -706,13 +771,13 @@ impl<'a> Scene<'a> {
         let corners: Vec<((u32, u32), f32)> = if level == 0 {
             // Level 0 through its grid: the nearest texel at each lookup.
             let share = 1.0 / points.len() as f32;
-            points.iter().map(|&q| (self.texel_at(q, 0), share)).collect()
+            points.iter().enumerate().map(|(k, &q)| (self.texel_at(q, 0), share * tw(k))).collect()
         } else if mix.taps <= 1 && mix.taps_minor <= 1 {
             self.bilinear_corners(p, level).to_vec()
         } else {
             let (n, m) = (mix.taps, mix.taps_minor);
             let share = 1.0 / (n * m) as f32;
-            points[..(n * m) as usize].iter().flat_map(|&q| self.bilinear_corners(q, level).map(|(ij, w)| (ij, w * share))).collect()
+            points[..(n * m) as usize].iter().enumerate().flat_map(|(k, &q)| { let s = share * tw(k); self.bilinear_corners(q, level).map(move |(ij, w)| (ij, w * s)) }).collect()
         };
         // Coarse texels turn their frames by the view tilt. Each lookup where its own ray
         // lands already weights the footprint as a distant view sees it: the tilts'
