@@ -130,6 +130,19 @@ fn gpu_matches_the_cpu_twin() {
     // texels, blended with level 1 (LevelMix::fine_taps).
     let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
     assert_twins_agree(mid.name, &compare(&pass, &synthetic, &lights, &mid));
+    // Straight down with dense flyaways (the baked felt of the goldens): level 0's grid is seen
+    // through the flyaway rays in front of each lookup, level 1 (one lookup) through
+    // their mean (Scene::shade_surface_t) — a branch the synthetic model's few flyaways
+    // hardly show.
+    let felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
+    let fb = felt.bounds();
+    let felt_mid = Case { name: "baked felt at 3 texels per pixel, flyaways over both grids", camera: Camera::orbit_orthographic(0.0, 0.0, Vec3::new(fb.center().x, fb.center().y, fb.max.z), 4.0, 1.5 * fb.size().x, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+    let scene = fabric_runtime::cpu::render::Scene::new(&felt, &felt_mid.camera, &lights, felt_mid.options.clone()).unwrap();
+    let m = scene.level_mix(16.5, 16.5, felt.tile.top_z);
+    assert!(m.lo == 0 && m.hi == 1 && m.weight > 0.0 && m.taps == 1 && m.fly_taps.0 * m.fly_taps.1 > 1, "{m:?}");
+    let a = compare(&pass, &felt, &lights, &felt_mid);
+    assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
+    assert_twins_agree(felt_mid.name, &a);
     // Half a texel per pixel at 45°: level 0 alone through its grid of 4 × 2 nearest
     // texels, most of them repeats, which the GPU lists once each (level0_distinct).
     let half = Case { name: "synthetic at half a texel per pixel, level 0's grid with repeats", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 0.25, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };

@@ -239,7 +239,8 @@ uint fly_cell(vec2 offset, vec2 axis, uint taps, vec2 minor_axis, uint taps_mino
     float det = axis.x * minor_axis.y - axis.y * minor_axis.x;
     float s;
     float r;
-    if (abs(det) > 1e-12 * max(dot(axis, axis), dot(minor_axis, minor_axis))) {
+    // Nearly parallel axes (|sin| under 1e-3) are taken as parallel.
+    if (abs(det) > 1e-3 * length(axis) * length(minor_axis) && abs(det) > 0.0) {
         s = (offset.x * minor_axis.y - offset.y * minor_axis.x) / det;
         r = (axis.x * offset.y - axis.y * offset.x) / det;
     } else {
@@ -250,9 +251,12 @@ uint fly_cell(vec2 offset, vec2 axis, uint taps, vec2 minor_axis, uint taps_mino
         s = major ? u : 0.0;
         r = major ? 0.0 : u;
     }
-    // A point on a cell border goes to the cell after it, whatever the rounding.
-    uint cs = min(uint(max(floor((s + 0.5) * float(taps) + 1e-3), 0.0)), max(taps, 1u) - 1u);
-    uint cr = min(uint(max(floor((r + 0.5) * float(taps_minor) + 1e-3), 0.0)), max(taps_minor, 1u) - 1u);
+    // A point on a cell border goes to the cell after it, whatever the rounding; the
+    // cell clamped as a float (a float beyond uint's range converts to anything).
+    float fs = floor((s + 0.5) * float(taps) + 1e-3);
+    float fr = floor((r + 0.5) * float(taps_minor) + 1e-3);
+    uint cs = uint(isnan(fs) ? 0.0 : clamp(fs, 0.0, float(max(taps, 1u) - 1u)));
+    uint cr = uint(isnan(fr) ? 0.0 : clamp(fr, 0.0, float(max(taps_minor, 1u) - 1u)));
     return cs + taps * cr;
 }
 

@@ -45,7 +45,7 @@ pub enum GenerateError {
     Param { key: String, value: String, rule: String },
     /// The requested size is not a valid volume size.
     #[error("size: {0}")]
-    Size(#[source] VolumeError),
+    Size(VolumeError),
     /// The parameters and size together make no sense (e.g. fibers far below a voxel).
     #[error("{0}")]
     Layout(String),

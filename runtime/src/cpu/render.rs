@@ -234,7 +234,9 @@ pub fn fly_box_grid(major: f32, n: u32, bias: f32, grid: u32) -> FlyGrid {
 pub fn fly_cell(offset: Vec2, axis: Vec2, taps: u32, minor_axis: Vec2, taps_minor: u32) -> u32 {
     // offset = axis·s + minor_axis·r, s and r in [−½, ½] over the grid.
     let det = axis.x * minor_axis.y - axis.y * minor_axis.x;
-    let (s, r) = if det.abs() > 1e-12 * axis.length_squared().max(minor_axis.length_squared()) {
+    // Nearly parallel axes (|sin| under 1e-3) are taken as parallel: their determinant
+    // would be rounding.
+    let (s, r) = if det.abs() > 1e-3 * axis.length() * minor_axis.length() && det.abs() > 0.0 {
         ((offset.x * minor_axis.y - offset.y * minor_axis.x) / det, (axis.x * offset.y - axis.y * offset.x) / det)
     } else {
         // Parallel or empty axes: along the longer one alone.
@@ -245,7 +247,10 @@ pub fn fly_cell(offset: Vec2, axis: Vec2, taps: u32, minor_axis: Vec2, taps_mino
     // A point on a cell border (a surface grid's lookups often are: both grids are
     // symmetric about the hit) goes to the cell after it, whatever the rounding: the
     // border is moved a thousandth of a cell back, where nothing lies by symmetry.
-    let cell = |u: f32, n: u32| ((((u + 0.5) * n as f32) + 1e-3).floor().max(0.0) as u32).min(n.max(1) - 1);
+    let cell = |u: f32, n: u32| {
+        let c = ((u + 0.5) * n as f32 + 1e-3).floor();
+        (if c.is_nan() { 0.0 } else { c.clamp(0.0, (n.max(1) - 1) as f32) }) as u32
+    };
     cell(s, taps) + taps * cell(r, taps_minor)
 }
 
@@ -733,7 +738,7 @@ impl<'a> Scene<'a> {
     /// through in front of each lookup of `points` ([`lookup_transmittances`]; empty:
     /// `mean_t` in front of all).
     fn shade_surface_t(&self, ray: &Ray, t: f32, level: usize, mix: &LevelMix, points: &[Vec3], lookup_t: &[f32], mean_t: f32) -> (Vec3, u32) {
-        if lookup_t.len() != points.len() {
+        if lookup_t.is_empty() || lookup_t.len() != points.len() {
             let (r, l) = self.shade_surface(ray, t, level, mix, points, None);
             return (mean_t * r, l);
         }
