@@ -111,19 +111,28 @@ fn hybrid_model_on_its_tile_and_on_a_sphere() {
     check_golden("hybrid-synthetic-sphere", &sphere, 4.0, TOLERANCE).unwrap();
 }
 
+/// A baked preset of the goldens (tests/goldens/models, made by tests/goldens/make_models.sh).
+fn baked_model(preset: &str) -> fabric_runtime::hybrid::HybridModel {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models").join(format!("{preset}.hyb"));
+    fabric_runtime::hybrid::format::read_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The baked presets' goldens: one directional light, the periodic tile, shadows as fitted.
+fn baked_light_and_options() -> (Light, fabric_runtime::cpu::CpuRenderOptions) {
+    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode};
+    (Light::directional(direction_from_angles(40.0, 200.0), Vec3::splat(2.0)), CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() })
+}
+
 /// The baked presets (tests/goldens/models, made by tests/goldens/make_models.sh) drawn
 /// on their tile and on a sphere by the GPU renderer of hybrid models.
 #[test]
 fn baked_presets_on_their_tile_and_on_a_sphere() {
-    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode};
     use fabric_runtime::gpu::HybridPass;
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models");
-    let light = Light::directional(direction_from_angles(40.0, 200.0), Vec3::splat(2.0));
-    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
+    let (light, opts) = baked_light_and_options();
     for preset in ["plain", "twill", "satin", "silk", "felt"] {
-        let model = fabric_runtime::hybrid::format::read_file(&dir.join(format!("{preset}.hyb"))).unwrap();
+        let model = baked_model(preset);
         let g = pass.upload(&model, true).unwrap();
         let b = model.bounds();
         let top = Vec3::new(b.center().x, b.center().y, b.max.z);
@@ -169,15 +178,12 @@ fn baked_twill_under_the_built_in_sky() {
 /// the CPU twin draws the same.
 #[test]
 fn baked_presets_seen_from_afar() {
-    use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode, render};
     use fabric_runtime::gpu::HybridPass;
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("goldens/models");
-    let light = Light::directional(direction_from_angles(40.0, 200.0), Vec3::splat(2.0));
-    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::FromModel, ..Default::default() };
+    let (light, opts) = baked_light_and_options();
     for preset in ["felt", "satin"] {
-        let model = fabric_runtime::hybrid::format::read_file(&dir.join(format!("{preset}.hyb"))).unwrap();
+        let model = baked_model(preset);
         // What the view is meant to exercise is in the file.
         let coarse = &model.levels[2];
         let fly = coarse.flyaways.as_ref().expect("coarse flyaways");
