@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone ( `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -65,7 +65,12 @@ fn main() {
             sweep_supersampled(&model);
             return;
         }
-        for s in fabric_baker::prefilter::far_view::distance_sweep(&model, 32, 8).expect("the sweep") {
+        // `SWEEP_AT=0.3,0.4`: steps at these texels per pixel instead of the sweep's eight.
+        let steps = match std::env::var("SWEEP_AT") {
+            Ok(list) => list.split(',').map(|t| fabric_baker::prefilter::far_view::sweep_step(&model, 32, t.trim().parse().expect("SWEEP_AT: texels per pixel, comma-separated"))).collect(),
+            Err(_) => fabric_baker::prefilter::far_view::distance_sweep(&model, 32, 8),
+        };
+        for s in steps.expect("the sweep") {
             println!("sweep {:5.2} texels/px: chain {:.2}%  level 0 at 1 spp {:.2}%", s.texels_per_pixel, 100.0 * s.chain, 100.0 * s.level0);
         }
         return;

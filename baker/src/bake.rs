@@ -255,6 +255,10 @@ pub struct BakeReport {
     /// The transmission fit's figures (a BSDF bake).
     pub transmission: Option<TransmissionReport>,
     pub stage_seconds: Vec<(String, f64)>,
+    /// The process's peak resident memory (bytes) at the end of each stage, where the
+    /// system reports it (`memory::peak_rss_bytes`): the stage that raised it is the
+    /// bake's memory bound.
+    pub stage_peak_rss_bytes: Vec<(String, u64)>,
     pub total_seconds: f64,
     pub input_bytes: u64,
     pub model_bytes: u64,
@@ -406,7 +410,13 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     options.validate()?;
     let start = Instant::now();
     let mut stage_seconds: Vec<(String, f64)> = Vec::new();
-    let mut stage = |name: &str, t: Instant| stage_seconds.push((name.to_string(), t.elapsed().as_secs_f64()));
+    let mut stage_peak_rss_bytes: Vec<(String, u64)> = Vec::new();
+    let mut stage = |name: &str, t: Instant| {
+        stage_seconds.push((name.to_string(), t.elapsed().as_secs_f64()));
+        if let Some(peak) = crate::memory::peak_rss_bytes() {
+            stage_peak_rss_bytes.push((name.to_string(), peak));
+        }
+    };
 
     // 1. Geometry.
     let t = Instant::now();
@@ -699,6 +709,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         prefilter: prefilter_report,
         transmission: transmission_report,
         stage_seconds,
+        stage_peak_rss_bytes,
         total_seconds: start.elapsed().as_secs_f64(),
         input_bytes: (texels * nz * 7 * 4) as u64,
         model_bytes,

@@ -9,6 +9,7 @@ pub mod evaluate;
 pub mod fit;
 pub mod generate;
 pub mod geometry;
+pub mod memory;
 pub mod prefilter;
 pub mod progress;
 pub mod reference;

@@ -122,22 +122,23 @@ pub struct SweepStep {
 /// The distance sweep: `steps` perspective views of `pixels`² at polar 45°, from where
 /// a pixel covers ½ texel to 32 texels at the image centre (geometric steps).
 pub fn distance_sweep(model: &HybridModel, pixels: u32, steps: usize) -> Result<Vec<SweepStep>, CpuRenderError> {
+    let (near, far) = (0.5f32, 32.0f32);
+    (0..steps).map(|s| sweep_step(model, pixels, near * (far / near).powf(s as f32 / (steps.max(2) - 1) as f32))).collect()
+}
+
+/// One step of [`distance_sweep`]: the tile at 45° from where a pixel at the view's
+/// centre spans `texels` level-0 texels.
+pub fn sweep_step(model: &HybridModel, pixels: u32, texels: f32) -> Result<SweepStep, CpuRenderError> {
     let b = model.bounds();
     let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
     let fov = 40f32;
     let texel = model.texel_size().x;
     // At distance d a pixel spans 2 d tan(fov/2) / pixels at the centre (perpendicular).
     let pixel_at = |d: f32| 2.0 * d * (0.5 * fov).to_radians().tan() / pixels as f32;
-    let (near, far) = (0.5f32, 32.0f32);
     let dir = direction_from_angles(45.0, VIEW_AZIMUTH);
-    let mut out = Vec::with_capacity(steps);
-    for s in 0..steps {
-        let texels = near * (far / near).powf(s as f32 / (steps.max(2) - 1) as f32);
-        let d = texels * texel / pixel_at(1.0);
-        let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
-        // The far corners of the view see up to ~1.6 times the centre's footprint.
-        let c = compare(model, &camera, &[far_light()], 1.6 * texels * std::f32::consts::SQRT_2)?;
-        out.push(SweepStep { distance: d, texels_per_pixel: texels, chain: c.chain, level0: c.level0, chain_nearest: c.chain_nearest, truth_noise: c.truth_noise });
-    }
-    Ok(out)
+    let d = texels * texel / pixel_at(1.0);
+    let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
+    // The far corners of the view see up to ~1.6 times the centre's footprint.
+    let c = compare(model, &camera, &[far_light()], 1.6 * texels * std::f32::consts::SQRT_2)?;
+    Ok(SweepStep { distance: d, texels_per_pixel: texels, chain: c.chain, level0: c.level0, chain_nearest: c.chain_nearest, truth_noise: c.truth_noise })
 }

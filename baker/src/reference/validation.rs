@@ -281,13 +281,6 @@ fn measurement_rays_pass_through_the_surface_point() {
     assert!(scene.measure_texel((8, 0), &[(Vec3::Z, Vec3::Z)], 1, 0).is_err());
 }
 
-/// Peak resident memory of this process (Linux `VmHWM`), bytes.
-fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
-}
-
 /// The memory bound: a 1024×1024×128 fabric renders within 24 GiB. Ignored by
 /// default (it allocates ~2.2 GB); run with
 /// `cargo test --release -p fabric-baker large_fabric -- --ignored --nocapture`.
@@ -310,7 +303,7 @@ fn large_fabric_renders_within_memory_budget() {
     let traced = TracedMedium::new(&v, MediumOptions { periodic: true, ..Default::default() }).unwrap();
     let camera = Camera::orbit_orthographic(30.0, 20.0, Vec3::new(2.0, 2.0, 0.5), 4.0, 4.0, 64, 64);
     let (img, stats) = render(&traced, &camera, &Lighting::from(&Light::directional(direction_from_angles(40.0, -60.0), Vec3::ONE)), &RenderSettings { spp: 2, ..Default::default() }, None).unwrap();
-    let peak = peak_rss_bytes().expect("the peak RSS (VmHWM in /proc/self/status)");
+    let peak = crate::memory::peak_rss_bytes().expect("the peak RSS (VmHWM in /proc/self/status)");
     eprintln!("1024x1024x128: packed volume {:.2} GB, peak RSS {:.2} GB, {:.0} paths/s, mean {}", v.memory_bytes() as f64 / 1e9, peak as f64 / 1e9, stats.paths_per_second(), img.mean());
     assert!(img.mean() > 0.0 && img.first_non_finite().is_none());
     assert!(peak < 24 * (1 << 30), "peak RSS {peak} bytes exceeds 24 GiB");

@@ -354,6 +354,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
     println!("wrote {} ({} bytes; input volume {} bytes)", args.out.display(), r.model_bytes, r.input_bytes);
     let times: Vec<String> = r.stage_seconds.iter().map(|(s, t)| format!("{s} {t:.1}")).collect();
     println!("stage times (s): {}; bake total {:.1} s", times.join(", "), r.total_seconds);
+    if !r.stage_peak_rss_bytes.is_empty() {
+        let peaks: Vec<String> = r.stage_peak_rss_bytes.iter().map(|(s, b)| format!("{s} {:.0}", *b as f64 / 1e6)).collect();
+        println!("peak memory after each stage (MB): {}", peaks.join(", "));
+    }
 
     let pictures = args.pictures.clone().unwrap_or_else(|| sibling(&args.out, "-views"));
     std::fs::create_dir_all(&pictures).with_context(|| format!("cannot create {}", pictures.display()))?;

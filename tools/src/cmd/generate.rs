@@ -84,13 +84,6 @@ fn resolve_params(args: &GenArgs) -> Result<GeneratorParams> {
     Ok(p)
 }
 
-/// Peak resident memory of this process (VmHWM), in bytes, where Linux reports it.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kb| kb * 1024)
-}
-
 fn bar(len: u64, what: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
     pb.set_style(ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
@@ -134,7 +127,7 @@ pub fn run(args: GenArgs) -> Result<()> {
             preview_seconds = t.elapsed().as_secs_f64();
         }
     }
-    let peak = peak_rss_bytes();
+    let peak = fabric_baker::memory::peak_rss_bytes();
     let summary = serde_json::json!({
         "preset": args.preset.name(),
         "seed": args.seed,
