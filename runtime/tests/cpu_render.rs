@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fine_grid_spread, fly_box_grid, grid_taps};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FINE_TRACE_FROM, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fine_grid_spread, fine_grid_traced, fly_box_grid, grid_taps};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -207,6 +207,14 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     let model = examples::synthetic_model(64, 7);
     let scene = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     let t = model.texel_size().x;
+    // Its lookups are traced once it spans half a texel along either axis; a close-up's
+    // narrower grid reads beside the hit.
+    assert_eq!(FINE_TRACE_FROM, 0.5);
+    let inv = model.inv_texel_size();
+    for (a, b, want) in [(0.3f32, 0.2f32, false), (0.49, 0.1, false), (0.5, 0.1, true), (0.1, 0.6, true), (0.0, 0.0, false)] {
+        let axes = (Vec2::new(a * t, 0.0).rotate(Vec2::from_angle(0.3)), Vec2::new(0.0, b * t));
+        assert_eq!(fine_grid_traced(axes, inv), want, "a grid of {a} × {b} texels");
+    }
     let mix_at = |texels: f32| scene.level_mix_axes(Some((Vec2::new(texels * t, 0.0), Vec2::new(0.0, texels * t))));
     let lambda_of = |texels: f32| texels.log2() + FILTER_OFFSET;
     for texels in [0.1f32, 0.25, 0.3, 0.4, 0.5, 0.8, 1.0, 1.2, 1.5, 1.8, 2.0, 2.5, 3.0, 3.4] {

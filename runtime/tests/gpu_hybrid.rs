@@ -7,6 +7,7 @@
 #![cfg(feature = "gpu")]
 
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
+use fabric_runtime::cpu::render::fine_grid_traced;
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{FlyawayInput, HybridModel, examples};
 use fabric_runtime::image::Image;
@@ -150,7 +151,15 @@ fn gpu_matches_the_cpu_twin() {
     let m = scene.level_mix(16.5, 16.5, synthetic.tile.top_z);
     assert!(m.lo == 0 && m.weight == 0.0 && m.fine_taps == (4, 2), "{m:?}");
     assert!(m.fine_axes.0.length() < synthetic.texel_size().x, "the grid spans less than a texel: {m:?}");
+    assert!(fine_grid_traced(m.fine_axes, synthetic.inv_texel_size()), "half a texel across: each lookup traced, {m:?}");
     assert_twins_agree(half.name, &compare(&pass, &synthetic, &lights, &half));
+    // A close-up, 0.4 texels per pixel: the grid, a quarter texel across, reads beside the
+    // hit on the plane (FINE_TRACE_FROM).
+    let close = Case { name: "synthetic at 0.4 texels per pixel, level 0's grid beside the hit", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 0.2, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+    let scene = fabric_runtime::cpu::render::Scene::new(&synthetic, &close.camera, &lights, close.options.clone()).unwrap();
+    let m = scene.level_mix(16.5, 16.5, synthetic.tile.top_z);
+    assert!(m.lo == 0 && m.fine_taps.0 * m.fine_taps.1 > 1 && !fine_grid_traced(m.fine_axes, synthetic.inv_texel_size()), "{m:?}");
+    assert_twins_agree(close.name, &compare(&pass, &synthetic, &lights, &close));
     // The one-lookup coarse filter (`--coarse-filter bilinear`, specialization constant
     // 7) in both twins, and a different image from the box grid's.
     let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };

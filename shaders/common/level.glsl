@@ -64,6 +64,15 @@ float fine_grid_spread(float minor) {
     return clamp((minor - FINE_GRID_FROM) / (FINE_GRID_FULL - FINE_GRID_FROM), 0.0, 1.0);
 }
 
+// Level 0's grid traces each lookup's own ray once it spans FINE_TRACE_FROM texels along
+// its longer axis; a close-up's narrower grid reads beside the hit. Twin:
+// fine_grid_traced, FINE_TRACE_FROM.
+const float FINE_TRACE_FROM = 0.5;
+
+bool fine_grid_traced(vec2 axis_a, vec2 axis_b) {
+    return max(length(axis_a * model.inv_texel), length(axis_b * model.inv_texel)) >= FINE_TRACE_FROM;
+}
+
 // Most flyaway rays along a footprint's major axis per ray across it. Twin:
 // FLY_MAX_ANISOTROPY.
 #define FLY_MAX_ANISOTROPY 2u

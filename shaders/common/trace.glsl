@@ -227,9 +227,12 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
             for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
                 fine_xy[k] = p.xy;
             }
+            // A close-up's grid, under half a texel across, reads beside the hit.
             if (mix_.lo == 0u && n0 > 1u) {
+                bool traced = fine_grid_traced(mix_.fine_axis_a, mix_.fine_axis_b);
                 for (uint k = 0u; k < n0; ++k) {
-                    fine_xy[k] = tap_surface_point(o, d, tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k), p, floor_level);
+                    vec2 offset = tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k);
+                    fine_xy[k] = traced ? tap_surface_point(o, d, offset, p, floor_level) : p.xy + offset;
                 }
             }
             // Each lookup seen through the flyaway ray whose cell holds it: where the
