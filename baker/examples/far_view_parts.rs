@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone, `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -34,8 +34,10 @@ fn views(model: &HybridModel, pixels: u32, label: &str) {
         let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, coarse_filter, ..Default::default() };
         let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
-        let chain_ss = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 8)).unwrap();
-        let chain_2 = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 2)).unwrap();
+        // `CHAIN_ONLY=1`: the chain at one sample alone (the other columns repeat it).
+        let ss = |s: u32| if std::env::var("CHAIN_ONLY").is_ok() { chain.clone() } else { render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, s)).unwrap() };
+        let chain_ss = ss(8);
+        let chain_2 = ss(2);
         let e = relative_rmse(&chain, &truth).unwrap();
         let e_ss = relative_rmse(&chain_ss, &truth).unwrap();
         let e_2 = relative_rmse(&chain_2, &truth).unwrap();

@@ -121,8 +121,9 @@ vec3 background(vec3 d) {
 // Where a flyaway ray of a box grid, parallel to the pixel's ray (which meets the
 // surface at t_end), meets the surface itself; the bottom of the flyaway layer where it
 // misses, the pixel's t_end where its step budget runs out. Steps count as the
-// pixel's. Twin: Scene::own_surface_end.
-float own_surface_end(vec3 o, vec3 d, float t_top, float t_end, int floor_level, inout PixelTrace out_) {
+// pixel's; `landed` where it met the surface. Twin: Scene::own_surface_end.
+float own_surface_end(vec3 o, vec3 d, float t_top, float t_end, int floor_level, inout PixelTrace out_, out bool landed) {
+    landed = false;
     if (!RELIEF) {
         return t_end;
     }
@@ -130,6 +131,7 @@ float own_surface_end(vec3 o, vec3 d, float t_top, float t_end, int floor_level,
     HfTrace hit = hf_trace(o, d, t_top, HF_F32_MAX, 0.0, params.max_steps, steps, floor_level);
     out_.steps += steps;
     if (hit.kind == HF_HIT) {
+        landed = true;
         return hit.t;
     }
     if (hit.kind == HF_STEP_LIMIT) {
@@ -173,8 +175,12 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     float ray_end = t_end;
     // Each grid ray's transmittance, in grid order (Scene::trace_mixed's fly_rays).
     float fly_t[MAX_FLY_RAYS];
+    // ... where each met the surface (bit k of fly_landed: ray k did).
+    vec2 fly_xy[MAX_FLY_RAYS];
+    uint fly_landed = 0u;
     for (uint k = 0u; k < MAX_FLY_RAYS; ++k) {
         fly_t[k] = 1.0;
+        fly_xy[k] = vec2(0.0);
     }
     for (uint k = 0u; k < fga * fgb * fly_levels; ++k) {
         uint ray = k / fly_levels;
@@ -183,7 +189,12 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         if (fga * fgb > 1u) {
             ro = o + vec3(tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, ray), 0.0);
             if (lk == 0u) {
-                ray_end = own_surface_end(ro, d, t_top, t_end, floor_level, out_);
+                bool landed;
+                ray_end = own_surface_end(ro, d, t_top, t_end, floor_level, out_, landed);
+                if (landed && ray < MAX_FLY_RAYS) {
+                    fly_xy[ray] = (ro + d * ray_end).xy;
+                    fly_landed |= 1u << ray;
+                }
             }
         }
         float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
@@ -229,10 +240,20 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
             }
             // A close-up's grid, under half a texel across, reads beside the hit.
             if (mix_.lo == 0u && n0 > 1u) {
+                // Traced, each reads where the flyaway ray whose cell holds it met the
+                // surface, moved by its offset from that ray (Scene::trace_mixed); its own
+                // trace where that ray did not land.
                 bool traced = fine_grid_traced(mix_.fine_axis_a, mix_.fine_axis_b);
                 for (uint k = 0u; k < n0; ++k) {
                     vec2 offset = tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k);
-                    fine_xy[k] = traced ? tap_surface_point(o, d, offset, p, floor_level) : p.xy + offset;
+                    uint c = fga * fgb > 1u ? fly_cell(offset, mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb) : MAX_FLY_RAYS;
+                    if (!traced) {
+                        fine_xy[k] = p.xy + offset;
+                    } else if (c < MAX_FLY_RAYS && (fly_landed & (1u << c)) != 0u) {
+                        fine_xy[k] = fly_xy[c] + (offset - tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, c));
+                    } else {
+                        fine_xy[k] = tap_surface_point(o, d, offset, p, floor_level);
+                    }
                 }
             }
             // Each lookup seen through the flyaway ray whose cell holds it: where the

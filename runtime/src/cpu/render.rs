@@ -603,12 +603,16 @@ impl<'a> Scene<'a> {
         // Each grid ray's transmittance (what it lets through of the surface where it
         // lands), in grid order.
         let mut fly_rays: Vec<f32> = Vec::new();
+        // ... and where each met the surface (None: it missed or ran out of steps).
+        let mut fly_hits: Vec<Option<Vec3>> = Vec::new();
         for k in 0..ga * gb {
             let (r, t_end) = if ga * gb == 1 {
                 (*ray, t_end)
             } else {
                 let r = Ray::new(ray.o + tap_offset(fa, ga, fb, gb, k).extend(0.0), ray.d);
-                (r, self.own_surface_end(&r, t_top, t_end, floor, &mut out))
+                let (t_end, landed) = self.own_surface_end(&r, t_top, t_end, floor, &mut out);
+                fly_hits.push(landed.then(|| r.at(t_end)));
+                (r, t_end)
             };
             let mut f = self.march_level_flyaways(&r, t_top, t_end, fl);
             if fw > 0.0 && fh != fl {
@@ -650,7 +654,22 @@ impl<'a> Scene<'a> {
                 let traced = fine_grid_traced(mix.fine_axes, self.model.inv_texel_size());
                 let fine_point = |k: u32| {
                     let offset = tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k);
-                    if traced { self.tap_surface_point(ray, offset, ray.at(t), floor) } else { ray.at(t) + offset.extend(0.0) }
+                    if !traced {
+                        return ray.at(t) + offset.extend(0.0);
+                    }
+                    // Where the flyaway ray whose cell holds the lookup met the surface,
+                    // moved by the lookup's offset from that ray, in the hit's plane: the
+                    // flyaways' grid traced it already, and on a round footprint the two
+                    // grids' offsets coincide (baker/PREFILTER_MEASUREMENTS.md, "Level 0's
+                    // lookups from the flyaway rays' hits"); its own trace where that ray
+                    // did not land.
+                    if fly_hits.len() > 1 {
+                        let c = fly_cell(offset, fa, ga, fb, gb);
+                        if let Some(h) = fly_hits[c as usize] {
+                            return h + (offset - tap_offset(fa, ga, fb, gb, c)).extend(0.0);
+                        }
+                    }
+                    self.tap_surface_point(ray, offset, ray.at(t), floor)
                 };
                 let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(fine_point).collect() } else { Vec::new() };
                 // Each lookup seen through the flyaway ray whose cell holds it: where the
@@ -684,17 +703,18 @@ impl<'a> Scene<'a> {
     /// the pixel's hit lies at another place's depth (baker/PREFILTER_MEASUREMENTS.md,
     /// "Each flyaway ray to its own surface"). The bottom of the flyaway layer where it
     /// misses a clamped tile; the pixel's `t_end` where its step budget runs out. Steps
-    /// count as the pixel's.
-    fn own_surface_end(&self, ray: &Ray, t_top: f32, t_end: f32, floor: usize, out: &mut PixelTrace) -> f32 {
+    /// count as the pixel's. True with it where the ray met the surface (level 0's grid
+    /// reads its lookups from such hits).
+    fn own_surface_end(&self, ray: &Ray, t_top: f32, t_end: f32, floor: usize, out: &mut PixelTrace) -> (f32, bool) {
         let mut steps = 0;
         let hit = self.tracer.trace_to(ray, t_top, f32::MAX, 0.0, self.options.max_steps, &mut steps, floor);
         out.steps += steps;
         match hit {
-            HfTrace::Hit(t) => t,
-            HfTrace::Miss => t_top + self.model.tile.height_scale / -ray.d.z,
+            HfTrace::Hit(t) => (t, true),
+            HfTrace::Miss => (t_top + self.model.tile.height_scale / -ray.d.z, false),
             HfTrace::StepLimit => {
                 out.step_limited = true;
-                t_end
+                (t_end, false)
             }
         }
     }
