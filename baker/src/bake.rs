@@ -35,7 +35,7 @@ use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
-use crate::fit::samples::{ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -537,33 +537,42 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         bar.finish();
         // Gather each cluster's targets: training samples by the texel hit, and the dense
         // samples of its representative.
+        // Each cluster's training samples are gathered as it is fitted, not all at once
+        // (a second copy of every sample's factors was the 512² bake's peak memory).
         let cluster = &km.assignment;
-        let mut targets: Vec<(Vec<Target>, Vec<TargetRay>)> = vec![(Vec::new(), Vec::new()); k];
-        for s in &samples {
-            let t = &mut targets[cluster[s.hit as usize] as usize];
-            t.0.push(Target { geo: weighted(s).geo, radiance: target_of(s) * pw(s) });
-            t.1.push(ray_of(s));
-        }
+        let by_cluster = Groups::by_key(samples.len(), k, |i| cluster[samples[i].hit as usize] as usize);
+        let mut dense_targets: Vec<(Vec<Target>, Vec<TargetRay>)> = vec![(Vec::new(), Vec::new()); k];
         for &rep in &reps {
             for s in &dense_cache[&(rep as u32)] {
-                let t = &mut targets[cluster[s.hit as usize] as usize];
+                let t = &mut dense_targets[cluster[s.hit as usize] as usize];
                 t.0.push(Target { geo: s.geo, radiance: dense_values[s.target as usize] });
                 t.1.push(ray_of(s));
             }
         }
         let bar = begin_stage(progress, format!("K = {k}: fitting"), k as u64);
-        let (fits, offsets): (Vec<ClusterFit>, Vec<Vec<FrameOffset>>) = targets
-            .par_iter()
-            .map(|(t, r)| {
+        let (fits, offsets): (Vec<ClusterFit>, Vec<Vec<FrameOffset>>) = dense_targets
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, (dense_t, dense_r))| {
+                let members = by_cluster.group(c);
+                let mut t: Vec<Target> = Vec::with_capacity(members.len() + dense_t.len());
+                let mut r: Vec<TargetRay> = Vec::with_capacity(members.len() + dense_r.len());
+                for &i in members {
+                    let s = &samples[i as usize];
+                    t.push(Target { geo: weighted(s).geo, radiance: target_of(s) * pw(s) });
+                    r.push(ray_of(s));
+                }
+                t.extend(dense_t);
+                r.extend(dense_r);
                 let f = match &frame_fit {
-                    Some(fo) => fit_cluster_framed(t, r, &base_frames, &dirs, &options.fit, fo),
-                    None => (fit_cluster(t, &options.fit), vec![FrameOffset::IDENTITY]),
+                    Some(fo) => fit_cluster_framed(&t, &r, &base_frames, &dirs, &options.fit, fo),
+                    None => (fit_cluster(&t, &options.fit), vec![FrameOffset::IDENTITY]),
                 };
                 bar.advance(1);
                 f
             })
             .unzip();
-        drop(targets);
+        drop(by_cluster);
         bar.finish();
         // The model's training images, and its error against them.
         let frames = offset_frames(&base_frames, cluster, &offsets);
@@ -599,11 +608,16 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
             let bar = begin_stage(progress, "per-texel refinement", 1);
-            let mut per_texel: Vec<Vec<LobeTarget>> = vec![Vec::new(); texels];
-            for s in &samples {
-                per_texel[s.hit as usize].push(LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) });
-            }
-            let refined: Vec<ClothParams> = per_texel.par_iter().enumerate().map(|(j, t)| refine_texel(t, &params[clusters[j] as usize], ridge, options.fit.reading)).collect();
+            // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
+            let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
+            let refined: Vec<ClothParams> = (0..texels)
+                .into_par_iter()
+                .map(|j| {
+                    let t: Vec<LobeTarget> = by_texel.group(j).iter().map(|&i| &samples[i as usize]).map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
+                    refine_texel(&t, &params[clusters[j] as usize], ridge, options.fit.reading)
+                })
+                .collect();
+            drop(by_texel);
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
             bar.finish();

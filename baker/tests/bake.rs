@@ -36,6 +36,12 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(f.error_fitted < f.error_without, "{f:?}");
     assert!(b.model.has_flyaways());
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
+    // The peak memory after each stage (Linux reports it): every stage, never falling.
+    if cfg!(target_os = "linux") {
+        let names = |v: Vec<&String>| v.into_iter().cloned().collect::<Vec<String>>();
+        assert_eq!(names(r.stage_peak_rss_bytes.iter().map(|(s, _)| s).collect()), names(r.stage_seconds.iter().map(|(s, _)| s).collect()));
+        assert!(r.stage_peak_rss_bytes.windows(2).all(|w| w[0].1 <= w[1].1) && r.stage_peak_rss_bytes[0].1 > 0, "{:?}", r.stage_peak_rss_bytes);
+    }
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);
     // The default diffuse law (format 1.6), in the model and the report.

@@ -195,8 +195,54 @@ pub fn texel_jitter(seed: u64, texel: u32, pair: u32, s: u32) -> (f32, f32) {
     Rng::new(key, pair as u64, s as u64).next_2d()
 }
 
+/// Indices 0..n grouped by `key(i)` < `groups`, each group in increasing order (a
+/// stable counting sort): group g is `order[starts[g]..starts[g + 1]]`. Four bytes a
+/// sample where a vector of targets per texel or cluster, built all at once, held every
+/// sample's factors a second time (the 512² bake's peak memory).
+pub struct Groups {
+    pub starts: Vec<usize>,
+    pub order: Vec<u32>,
+}
+
+impl Groups {
+    pub fn by_key(n: usize, groups: usize, key: impl Fn(usize) -> usize) -> Groups {
+        let mut starts = vec![0usize; groups + 1];
+        for i in 0..n {
+            starts[key(i) + 1] += 1;
+        }
+        for g in 0..groups {
+            starts[g + 1] += starts[g];
+        }
+        let mut next = starts.clone();
+        let mut order = vec![0u32; n];
+        for i in 0..n {
+            let g = key(i);
+            order[next[g]] = i as u32;
+            next[g] += 1;
+        }
+        Groups { starts, order }
+    }
+
+    /// The indices in group `g`.
+    pub fn group(&self, g: usize) -> &[u32] {
+        &self.order[self.starts[g]..self.starts[g + 1]]
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn groups_hold_every_index_once_in_order() {
+        let keys = [2usize, 0, 2, 1, 0, 2, 3, 0];
+        let g = super::Groups::by_key(keys.len(), 5, |i| keys[i]);
+        assert_eq!(g.group(0), &[1, 4, 7]);
+        assert_eq!(g.group(1), &[3]);
+        assert_eq!(g.group(2), &[0, 2, 5]);
+        assert_eq!(g.group(3), &[6]);
+        assert!(g.group(4).is_empty());
+        assert_eq!(g.order.len(), keys.len());
+    }
+
     use super::*;
 
     fn flat(value: f32) -> Image {
