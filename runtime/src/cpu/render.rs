@@ -297,7 +297,7 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
 /// traced points changed none of the sweep's near steps (0.3–0.9 texels per pixel, all
 /// three presets, to 0.01 points) and the synthetic golden view by 10.28 → 10.04%
 /// against 8 × 8 samples, while lavapipe's twill frame at 0.375 texels per pixel went
-/// from 82 to 36 ms (baker/PREFILTER_MEASUREMENTS.md, "Level 0's grid traced from half
+/// from 75 to 42 ms (baker/PREFILTER_MEASUREMENTS.md, "Level 0's grid traced from half
 /// a texel across").
 pub const FINE_TRACE_FROM: f32 = 0.5;
 
