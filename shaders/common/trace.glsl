@@ -232,7 +232,8 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                 }
             }
             // Level 0's grid (a footprint past a quarter texel, or blended with level 1), each
-            // lookup where its own parallel ray meets the height field (Scene::trace_mixed).
+            // lookup, past half a texel across, where its own parallel ray meets the height
+            // field (Scene::trace_mixed).
             uint n0 = min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS);
             vec2 fine_xy[MAX_SURFACE_TAPS];
             for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
@@ -246,13 +247,15 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                 bool traced = fine_grid_traced(mix_.fine_axis_a, mix_.fine_axis_b);
                 for (uint k = 0u; k < n0; ++k) {
                     vec2 offset = tap_offset(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, k);
-                    uint c = fga * fgb > 1u ? fly_cell(offset, mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb) : MAX_FLY_RAYS;
-                    if (!traced) {
-                        fine_xy[k] = p.xy + offset;
-                    } else if (c < MAX_FLY_RAYS && (fly_landed & (1u << c)) != 0u) {
-                        fine_xy[k] = fly_xy[c] + (offset - tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, c));
-                    } else {
-                        fine_xy[k] = tap_surface_point(o, d, offset, p, floor_level);
+                    fine_xy[k] = p.xy + offset;
+                    if (traced) {
+                        uint c = fga * fgb > 1u ? fly_cell(offset, mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb) : MAX_FLY_RAYS;
+                        bool borrowed = c < MAX_FLY_RAYS && (fly_landed & (1u << c)) != 0u;
+                        if (borrowed) {
+                            fine_xy[k] = fly_xy[c] + (offset - tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, c));
+                        } else {
+                            fine_xy[k] = tap_surface_point(o, d, offset, p, floor_level);
+                        }
                     }
                 }
             }

@@ -643,8 +643,8 @@ impl<'a> Scene<'a> {
                 let (n, m) = (mix.taps, mix.taps_minor);
                 let points: Vec<Vec3> = if coarse && n * m > 1 { (0..n * m).map(|k| self.tap_surface_point(ray, tap_offset(mix.axis, n, mix.minor_axis, m, k), ray.at(t), floor)).collect() } else { Vec::new() };
                 let (f0, f1) = mix.fine_taps;
-                // Level 0's grid, each lookup where its own parallel ray meets the height field
-                // (as the coarse grid's): at ½–2 texels per pixel the one ray's hit jumps
+                // Level 0's grid, each lookup (past half a texel across) where its own parallel
+                // ray meets the height field, as the coarse grid's: at ½–2 texels per pixel the one ray's hit jumps
                 // between crest and valley, which the offsets beside it kept (satin's
                 // surface at the sweep's first three steps 8.1 / 9.3 / 11.0% → 5.6 / 6.1 /
                 // 6.8%; twill had gained 0–0.4 points; baker/PREFILTER_MEASUREMENTS.md,
