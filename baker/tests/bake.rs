@@ -36,11 +36,16 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(f.error_fitted < f.error_without, "{f:?}");
     assert!(b.model.has_flyaways());
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
-    // The peak memory after each stage (Linux reports it): every stage, never falling.
+    // The peak memory after each stage (Linux reports it): one per timed stage, in bytes
+    // (a process that rendered training images holds well over a MiB; a reading left in
+    // kB or pages would not), none above the peak read after the bake. The kernel's
+    // counters are per-thread caches, off by up to a few hundred kB, hence the slack.
     if cfg!(target_os = "linux") {
         let names = |v: Vec<&String>| v.into_iter().cloned().collect::<Vec<String>>();
-        assert_eq!(names(r.stage_peak_rss_bytes.iter().map(|(s, _)| s).collect()), names(r.stage_seconds.iter().map(|(s, _)| s).collect()));
-        assert!(r.stage_peak_rss_bytes.windows(2).all(|w| w[0].1 <= w[1].1) && r.stage_peak_rss_bytes[0].1 > 0, "{:?}", r.stage_peak_rss_bytes);
+        let peaks = &r.stage_peak_rss_bytes;
+        assert_eq!(names(peaks.iter().map(|(s, _)| s).collect()), names(r.stage_seconds.iter().map(|(s, _)| s).collect()));
+        let after = fabric_baker::memory::peak_rss_bytes().expect("VmHWM on Linux");
+        assert!(peaks.iter().all(|&(_, b)| b > 1 << 20 && b <= after + (4 << 20)), "{peaks:?}, {after} after");
     }
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);

@@ -206,6 +206,8 @@ pub struct Groups {
 
 impl Groups {
     pub fn by_key(n: usize, groups: usize, key: impl Fn(usize) -> usize) -> Groups {
+        // Indices are stored in 4 bytes: 2³² samples would be ~100 GB of samples first.
+        assert!(u32::try_from(n).is_ok(), "{n} samples exceed the 2^32 a group index holds");
         let mut starts = vec![0usize; groups + 1];
         for i in 0..n {
             starts[key(i) + 1] += 1;

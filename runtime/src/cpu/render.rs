@@ -315,6 +315,14 @@ struct FlyShade {
     shadow_limited: u32,
 }
 
+/// Where a pixel's flyaway rays met the surface, in grid order ([`tap_offset`] over
+/// `axes`, `taps`; None where a ray missed), for level 0's lookups to share.
+struct FlyHits<'h> {
+    hits: &'h [Option<Vec3>],
+    axes: (Vec2, Vec2),
+    taps: (u32, u32),
+}
+
 /// What one camera ray found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PixelTrace {
@@ -652,25 +660,8 @@ impl<'a> Scene<'a> {
                 // A close-up's grid, under half a texel across, reads beside the hit
                 // ([`FINE_TRACE_FROM`]).
                 let traced = fine_grid_traced(mix.fine_axes, self.model.inv_texel_size());
-                let fine_point = |k: u32| {
-                    let offset = tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k);
-                    if !traced {
-                        return ray.at(t) + offset.extend(0.0);
-                    }
-                    // Where the flyaway ray whose cell holds the lookup met the surface,
-                    // moved by the lookup's offset from that ray, in the hit's plane: the
-                    // flyaways' grid traced it already, and on a round footprint the two
-                    // grids' offsets coincide (baker/PREFILTER_MEASUREMENTS.md, "Level 0's
-                    // lookups from the flyaway rays' hits"); its own trace where that ray
-                    // did not land.
-                    if fly_hits.len() > 1 {
-                        let c = fly_cell(offset, fa, ga, fb, gb);
-                        if let Some(h) = fly_hits[c as usize] {
-                            return h + (offset - tap_offset(fa, ga, fb, gb, c)).extend(0.0);
-                        }
-                    }
-                    self.tap_surface_point(ray, offset, ray.at(t), floor)
-                };
+                let fly_grid = FlyHits { hits: &fly_hits, axes: (fa, fb), taps: (ga, gb) };
+                let fine_point = |k: u32| self.fine_lookup_point(ray, ray.at(t), tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), traced, &fly_grid, floor);
                 let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(fine_point).collect() } else { Vec::new() };
                 // Each lookup seen through the flyaway ray whose cell holds it: where the
                 // flyaways leave a gap, the surface under it shows. The mean of the rays'
@@ -755,6 +746,28 @@ impl<'a> Scene<'a> {
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }
         out
+    }
+
+    /// Where level 0's grid reads its lookup at `offset` (world x–y) beside the pixel's hit
+    /// `hit`. Under half a texel across (`traced` false): beside the hit. Traced: where the
+    /// flyaway ray whose cell holds the lookup met the surface, moved by the lookup's
+    /// offset from that ray in the hit's horizontal plane — the flyaways' grid traced it
+    /// already, and on a round footprint the two grids' offsets coincide
+    /// (baker/PREFILTER_MEASUREMENTS.md, "Level 0's lookups from the flyaway rays' hits");
+    /// its own trace where that ray did not land or there is no flyaway grid. Twin: the
+    /// fine grid's loop in shaders/common/trace.glsl.
+    fn fine_lookup_point(&self, ray: &Ray, hit: Vec3, offset: Vec2, traced: bool, fly: &FlyHits, floor: usize) -> Vec3 {
+        if !traced {
+            return hit + offset.extend(0.0);
+        }
+        if fly.hits.len() > 1 {
+            let (ga, gb) = fly.taps;
+            let c = fly_cell(offset, fly.axes.0, ga, fly.axes.1, gb);
+            if let Some(h) = fly.hits.get(c as usize).copied().flatten() {
+                return h + (offset - tap_offset(fly.axes.0, ga, fly.axes.1, gb, c)).extend(0.0);
+            }
+        }
+        self.tap_surface_point(ray, offset, hit, floor)
     }
 
     /// Where the lookup at `offset` (world x–y) of a box grid reads the surface: where a
@@ -991,7 +1004,71 @@ fn distinct_corners(corners: &[((u32, u32), f32)]) -> Vec<((u32, u32), f32)> {
 
 #[cfg(test)]
 mod tests {
-    use super::distinct_corners;
+    use super::{FlyHits, Scene, distinct_corners, tap_offset};
+    use crate::cpu::CpuRenderOptions;
+    use crate::hybrid::{Tile, examples};
+    use crate::scene::{Camera, Light};
+    use glam::{Vec2, Vec3};
+
+    /// Level 0's traced lookups borrow the flyaway rays' hits: on a flat height field a
+    /// borrowed hit is the lookup's own trace; where a flyaway ray missed, or there is
+    /// no flyaway grid, the lookup traces its own ray; under half a texel it sits beside
+    /// the hit.
+    #[test]
+    fn level_0_lookups_borrow_the_flyaway_rays_hits() {
+        let tile = Tile { origin: Vec2::new(-0.5, -0.5), size: Vec2::ONE, top_z: 0.3, height_scale: 0.3, voxel_depth: 0.01 };
+        let params = examples::silk_params();
+        let (n, t) = (Vec3::Z, Vec3::X);
+        let flat = examples::uniform_model(32, 32, 1, tile, |_, _| 0.1, &params, n, t).unwrap();
+        // A relief along x (a crest every 8 texels): a borrowed hit keeps its own ray's depth.
+        let bumpy = examples::uniform_model(32, 32, 1, tile, |x, _| 0.1 + 0.08 * (x * 25.0).sin(), &params, n, t).unwrap();
+        let camera = Camera::orbit_orthographic(50.0, 30.0, Vec3::new(0.0, 0.0, 0.2), 3.0, 1.0, 16, 16);
+        let lights = [Light::directional(Vec3::new(0.3, 0.2, 1.0), Vec3::ONE)];
+        let ray = camera.ray(8.5, 8.5);
+        // Two flyaway rays along x, two across, over 3 texels; level 0's grid 4 × 2 on the same box.
+        let (fa, fb) = (Vec2::new(3.0 / 32.0, 0.0), Vec2::new(0.0, 3.0 / 32.0));
+        let offsets: Vec<Vec2> = (0..8).map(|k| tap_offset(fa, 4, fb, 2, k)).collect();
+        for (name, model) in [("flat", &flat), ("bumpy", &bumpy)] {
+            let scene = Scene::new(model, &camera, &lights, CpuRenderOptions::default()).unwrap();
+            let hit = scene.tap_surface_point(&ray, Vec2::ZERO, Vec3::ZERO, 0);
+            assert!((hit.z - 0.2).abs() < 0.1 && hit.x.abs() < 0.5, "{name}: pixel's hit {hit}");
+            let own: Vec<Vec3> = offsets.iter().map(|&o| scene.tap_surface_point(&ray, o, hit, 0)).collect();
+            let fly: Vec<Option<Vec3>> = (0..4).map(|k| Some(scene.tap_surface_point(&ray, tap_offset(fa, 2, fb, 2, k), hit, 0))).collect();
+            let grid = FlyHits { hits: &fly, axes: (fa, fb), taps: (2, 2) };
+            let borrowed: Vec<Vec3> = offsets.iter().map(|&o| scene.fine_lookup_point(&ray, hit, o, true, &grid, 0)).collect();
+            for (k, (&o, (b, w))) in offsets.iter().zip(borrowed.iter().zip(&own)).enumerate() {
+                // Each borrowed point is a flyaway hit moved by less than the cell, at that hit's depth.
+                let c = super::fly_cell(o, fa, 2, fb, 2) as usize;
+                let from = fly[c].unwrap();
+                assert_eq!(b.z, from.z, "{name}, lookup {k}");
+                assert!(((*b - from).truncate() - (o - tap_offset(fa, 2, fb, 2, c as u32))).length() < 1e-6, "{name}, lookup {k}");
+                if name == "flat" {
+                    assert!((*b - *w).length() < 1e-4, "flat, lookup {k}: borrowed {b} against its own trace {w}");
+                }
+            }
+            if name == "bumpy" {
+                let apart = borrowed.iter().zip(&own).filter(|(b, w)| (**b - **w).length() > 1e-3).count();
+                assert!(apart > 0, "the relief should make borrowed hits differ from own traces");
+            }
+            // A flyaway ray that missed: its lookups trace their own rays, the others still borrow.
+            let mut missed = fly.clone();
+            missed[1] = None;
+            let grid = FlyHits { hits: &missed, axes: (fa, fb), taps: (2, 2) };
+            for (k, &o) in offsets.iter().enumerate() {
+                let c = super::fly_cell(o, fa, 2, fb, 2) as usize;
+                let got = scene.fine_lookup_point(&ray, hit, o, true, &grid, 0);
+                let want = if c == 1 { own[k] } else { borrowed[k] };
+                assert_eq!(got, want, "{name}, lookup {k} in cell {c}");
+            }
+            assert!(offsets.iter().any(|&o| super::fly_cell(o, fa, 2, fb, 2) == 1));
+            // No flyaway grid: every lookup its own trace. Not traced: beside the hit.
+            let none = FlyHits { hits: &[], axes: (fa, fb), taps: (1, 1) };
+            for (k, &o) in offsets.iter().enumerate() {
+                assert_eq!(scene.fine_lookup_point(&ray, hit, o, true, &none, 0), own[k], "{name}, lookup {k}");
+                assert_eq!(scene.fine_lookup_point(&ray, hit, o, false, &grid, 0), hit + o.extend(0.0), "{name}, lookup {k}");
+            }
+        }
+    }
 
     #[test]
     fn distinct_corners_keep_first_appearance_and_sum_weights_in_order() {
