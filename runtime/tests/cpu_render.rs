@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FINE_TRACE_FROM, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, MAX_ANISOTROPY, box_grid, fine_grid_spread, fine_grid_traced, fly_box_grid, grid_taps};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FINE_TRACE_FROM, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, LEVEL0_GRID_MAX, LEVEL0_REACH, MAX_ANISOTROPY, MAX_SURFACE_TAPS, box_grid, fine_grid_spread, fine_grid_traced, fly_box_grid, grid_taps, level0_grid_taps, level0_reach_weight};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -108,13 +108,20 @@ fn level_follows_the_pixel_footprint() {
         assert_eq!(stats.level_pixels[want], (pixels * pixels) as u64, "{pixels} px, bias {bias}: {:?}", stats.level_pixels);
         let expect = Vec3::new(0.1 + 0.2 * want as f32, 0.5, 0.9 - 0.2 * want as f32);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px: {}", image.get(pixels / 2, pixels / 2));
-        // Auto blends levels ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ clamped to the chain; a
-        // round footprint: one lookup).
+        // Auto: level 0 alone through its grid up to LEVEL0_REACH texels, blended into
+        // level 1 until the box grid's level reaches 1, then the box grid's levels
+        // ⌊λ⌋ and ⌊λ⌋ + 1 by λ − ⌊λ⌋ (λ − log2 G for a round footprint, clamped to the chain).
         let (image, _) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() }).unwrap();
-        // Past λ = 1 the box grid reads a finer level (λ − log2 G, at least 1).
         let rho = 64.0 / pixels as f32;
-        let lambda = (rho.log2() + fabric_runtime::cpu::render::FILTER_OFFSET + bias).max(0.0);
-        let lambda = box_grid(rho, rho, 1, lambda, bias, FILTER_GRID).map_or(lambda, |g| g.lambda).min(4.0);
+        let lambda = rho.log2() + FILTER_OFFSET + bias;
+        let lambda = match box_grid(rho, rho, 1, lambda, bias, FILTER_GRID) {
+            None => 0.0,
+            Some(g) => {
+                let reach = level0_reach_weight((rho / FILTER_GRID as f32).log2() + FILTER_OFFSET + bias);
+                if reach < 1.0 { reach } else { g.lambda }
+            }
+        }
+        .min(4.0);
         let expect = Vec3::new(0.1 + 0.2 * lambda, 0.5, 0.9 - 0.2 * lambda);
         assert!((image.get(pixels / 2, pixels / 2) - expect).abs().max_element() < 1e-3, "{pixels} px, λ {lambda}: {}", image.get(pixels / 2, pixels / 2));
     }
@@ -197,9 +204,8 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     }
     // Level 0 is read through a grid of its nearest texels, spread from nothing at a
     // minor axis of a quarter texel to the footprint at half a texel, and where it is
-    // blended with level 1 (0 < λ < 1) at least from nothing at λ = 0 to the footprint
-    // at λ = ½; under a quarter texel the hit's texel alone (close-ups as they were),
-    // and none past λ = 1 (the coarse grid's).
+    // past λ = 0 at least from nothing at λ = 0 to the footprint at λ = ½; under a
+    // quarter texel the hit's texel alone (close-ups as they were).
     assert_eq!((FINE_GRID_FROM, FINE_GRID_FULL), (0.25, 0.5));
     for (minor, want) in [(0.0f32, 0.0f32), (0.25, 0.0), (0.3, 0.2), (0.375, 0.5), (0.5, 1.0), (0.9, 1.0), (3.0, 1.0)] {
         assert!((fine_grid_spread(minor) - want).abs() < 1e-6, "{minor}: {}", fine_grid_spread(minor));
@@ -224,8 +230,8 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
             assert_eq!((m.lo, m.weight, m.fine_taps), (0, 0.0, (1, 1)), "{texels} texels");
             continue;
         }
-        assert_eq!((m.lo, m.fine_taps), (0, (FILTER_GRID, FILTER_GRID)), "{texels} texels");
-        assert_eq!(m.hi, if lambda > 0.0 { 1 } else { 0 }, "{texels} texels");
+        let across = (texels.ceil() as u32).clamp(FILTER_GRID, LEVEL0_GRID_MAX);
+        assert_eq!((m.lo, m.hi, m.weight, m.fine_taps), (0, 0, 0.0, (across, across)), "{texels} texels: level 0 alone");
         let spread = (2.0 * lambda).clamp(0.0, 1.0).max(fine_grid_spread(texels));
         assert!((m.fine_axes.0.length() - spread * texels * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - spread * texels * t).abs() < 1e-4 * t, "{texels} texels: {m:?}");
     }
@@ -239,7 +245,48 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     let l0 = 2f32.powf(-FILTER_OFFSET);
     assert!((spread_of(l0 * 0.999) - spread_of(l0 * 1.001)).abs() < 0.01, "{} / {}", spread_of(l0 * 0.999), spread_of(l0 * 1.001));
     assert!(spread_of(FINE_GRID_FROM * 1.001) < 0.01);
-    assert_eq!(mix_at(4.0).fine_taps, (1, 1), "past λ = 1 the coarse grid reads the footprint");
+    // Level 0's grid: about one lookup per texel across, two to four, N times as many
+    // along a long footprint, at most 16 (the GPU's arrays).
+    assert_eq!((LEVEL0_REACH, LEVEL0_GRID_MAX, MAX_SURFACE_TAPS), (4.0, 4, 16));
+    for (minor, n, want) in [(0.3f32, 1u32, (2u32, 2u32)), (1.5, 1, (2, 2)), (2.0, 3, (6, 2)), (2.5, 1, (3, 3)), (3.0, 2, (5, 3)), (3.4, 1, (4, 4)), (4.0, 3, (4, 4)), (10.0, 1, (4, 4)), (2.0, 8, (8, 2)), (0.0, 1, (2, 2)), (f32::NAN, 1, (2, 2))] {
+        let got = level0_grid_taps(minor, n, FILTER_GRID);
+        assert_eq!(got, want, "{minor} texels, N {n}");
+        assert!(got.0 * got.1 <= MAX_SURFACE_TAPS);
+    }
+    // Up to two texels across it is the box grid's: G × N·G.
+    for n in 1..=8 {
+        assert_eq!(level0_grid_taps(1.9, n, FILTER_GRID), (grid_taps(n, FILTER_GRID), FILTER_GRID));
+    }
+    // Past λ = 1 (3.46 texels) level 0 is still read alone, over the whole footprint,
+    // up to LEVEL0_REACH; level 1's box grid is blended in from there until its level
+    // reaches 1 (6.93 texels), continuously, and reads alone beyond.
+    let m = mix_at(3.9);
+    assert_eq!((m.lo, m.hi, m.weight, m.fine_taps), (0, 1, 0.0, (4, 4)), "{m:?}");
+    assert!((m.fine_axes.0.length() - 3.9 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 3.9 * t).abs() < 1e-4 * t, "{m:?}");
+    assert!((spread_of(3.46) - spread_of(3.47)).abs() < 1e-3 && mix_at(3.46).fine_taps == mix_at(3.47).fine_taps);
+    let weight_at = |texels: f32| mix_at(texels).weight;
+    assert!(weight_at(LEVEL0_REACH * 1.001) < 0.01 && weight_at(LEVEL0_REACH * 0.999) == 0.0);
+    let full = 2.0 * (1.0 - FILTER_OFFSET).exp2();
+    assert!(weight_at(full * 0.999) > 0.99 && (mix_at(full * 0.999).lo, mix_at(full * 1.001).lo) == (0, 1), "{:?}", mix_at(full * 1.001));
+    assert_eq!(mix_at(full * 1.001).fine_taps, (1, 1), "past the reach the coarse grid reads the footprint alone");
+    let mut last = 0.0;
+    for k in 0..=20 {
+        let texels = LEVEL0_REACH + (full - LEVEL0_REACH) * k as f32 / 20.0;
+        let m = mix_at(texels);
+        assert!(m.weight >= last - 1e-6 && m.weight <= 1.0, "{texels} texels: {m:?}");
+        last = m.weight;
+        if texels < full * 0.999 {
+            // Level 1 through the box grid at level 1.
+            let g = box_grid(texels, texels, 1, lambda_of(texels), 0.0, FILTER_GRID).unwrap();
+            assert_eq!((m.lo, m.hi, m.taps, m.taps_minor), (0, 1, g.taps_major, g.taps_minor), "{texels} texels");
+            assert!((m.axis.length() - g.span_major * t).abs() < 1e-4 * t, "{texels} texels");
+        }
+    }
+    assert!((level0_reach_weight(f32::NAN), level0_reach_weight(-9.0), level0_reach_weight(9.0)) == (1.0, 0.0, 1.0));
+    // The bilinear filter (no grid) blends levels 0 and 1 by λ, as Vulkan's linear mips.
+    let bilinear = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..Default::default() }).unwrap();
+    let m = bilinear.level_mix_axes(Some((Vec2::new(3.0 * t, 0.0), Vec2::new(0.0, 3.0 * t))));
+    assert!((m.lo, m.hi, m.fine_taps) == (0, 1, (1, 1)) && (m.weight - lambda_of(3.0)).abs() < 1e-5, "{m:?}");
     // The fine grid (`CoarseFilter::Fine`): G = 4 rays per axis through voxels a quarter
     // of a round footprint (two levels finer), N·G along a long one as the surface's
     // lookups (at most 8), never below level 0.

@@ -127,23 +127,31 @@ fn gpu_matches_the_cpu_twin() {
     ] {
         assert_twins_agree(case.name, &compare(&pass, &synthetic, &lights, &case));
     }
-    // Three texels per pixel from above: level 0, read through its grid of nearest
-    // texels, blended with level 1 (LevelMix::fine_taps).
+    // Three texels per pixel from above: level 0 alone, read through its 3 × 3 grid of
+    // nearest texels (LevelMix::fine_taps).
     let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
     assert_twins_agree(mid.name, &compare(&pass, &synthetic, &lights, &mid));
     // Straight down with dense flyaways (the baked felt of the goldens): level 0's grid is seen
-    // through the flyaway rays in front of each lookup, level 1 (one lookup) through
-    // their mean (Scene::shade_surface_t) — a branch the synthetic model's few flyaways
-    // hardly show.
+    // through the flyaway rays in front of each lookup (Scene::shade_surface_t) — a
+    // branch the synthetic model's few flyaways hardly show — at 2.9 texels per pixel
+    // alone (3 × 3 lookups), at 5.5 blended with level 1's box grid, each grid through
+    // the flyaway rays in front of its lookups.
     let felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
     let fb = felt.bounds();
-    let felt_mid = Case { name: "baked felt at 3 texels per pixel, flyaways over both grids", camera: Camera::orbit_orthographic(0.0, 0.0, Vec3::new(fb.center().x, fb.center().y, fb.max.z), 4.0, 1.5 * fb.size().x, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
-    let scene = fabric_runtime::cpu::render::Scene::new(&felt, &felt_mid.camera, &lights, felt_mid.options.clone()).unwrap();
-    let m = scene.level_mix(16.5, 16.5, felt.tile.top_z);
-    assert!(m.lo == 0 && m.hi == 1 && m.weight > 0.0 && m.taps == 1 && m.fly_taps.0 * m.fly_taps.1 > 1, "{m:?}");
-    let a = compare(&pass, &felt, &lights, &felt_mid);
-    assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
-    assert_twins_agree(felt_mid.name, &a);
+    let texels_across = felt.width() as f32;
+    for (texels, name) in [(2.9f32, "baked felt at 2.9 texels per pixel, level 0's grid under the flyaways"), (5.5, "baked felt at 5.5 texels per pixel, flyaways over both grids")] {
+        let case = Case { name, camera: Camera::orbit_orthographic(0.0, 0.0, Vec3::new(fb.center().x, fb.center().y, fb.max.z), 4.0, texels * 32.0 / texels_across * fb.size().x, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+        let scene = fabric_runtime::cpu::render::Scene::new(&felt, &case.camera, &lights, case.options.clone()).unwrap();
+        let m = scene.level_mix(16.5, 16.5, felt.tile.top_z);
+        if texels < 4.0 {
+            assert!(m.lo == 0 && m.weight == 0.0 && m.fine_taps == (3, 3) && m.fly_taps.0 * m.fly_taps.1 > 1, "{m:?}");
+        } else {
+            assert!(m.lo == 0 && m.hi == 1 && m.weight > 0.0 && m.weight < 1.0 && m.taps * m.taps_minor > 1 && m.fine_taps == (4, 4) && m.fly_taps.0 * m.fly_taps.1 > 1, "{m:?}");
+        }
+        let a = compare(&pass, &felt, &lights, &case);
+        assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
+        assert_twins_agree(case.name, &a);
+    }
     // Half a texel per pixel at 45°: level 0 alone through its grid of 4 × 2 nearest
     // texels, most of them repeats, which the GPU lists once each (level0_distinct).
     let half = Case { name: "synthetic at half a texel per pixel, level 0's grid with repeats", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 0.25, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
@@ -407,9 +415,10 @@ fn coarse_relief_takes_fewer_steps_far_away_at_a_small_error_in_both_twins() {
     let m = examples::synthetic_model(128, 3);
     let g = pass.upload(&m, true).unwrap();
     let lights = [Light::directional(Vec3::new(0.3, -0.2, 1.0), Vec3::ONE)];
-    // Far: ~6 texels per pixel (levels 1-2); near: below a texel per pixel (level 0,
+    // Far: ~12 texels per pixel (levels 1-2; up to ~7 level 0's grid is still read,
+    // and its lookups march the exact relief); near: below a texel per pixel (level 0,
     // where coarse relief is the exact march).
-    let far = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 3.0, 3.0, 64, 64);
+    let far = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 3.0, 6.0, 64, 64);
     let near = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.5, 0.5, 0.0), 3.0, 0.4, 64, 64);
     let exact = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
     let coarse = CpuRenderOptions { coarse_relief: true, ..exact.clone() };

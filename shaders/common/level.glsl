@@ -64,6 +64,33 @@ float fine_grid_spread(float minor) {
     return clamp((minor - FINE_GRID_FROM) / (FINE_GRID_FULL - FINE_GRID_FROM), 0.0, 1.0);
 }
 
+// Level 0 is read through its own grid up to footprints of LEVEL0_REACH texels, level 1
+// only beyond (at 2-4 texels per pixel level 0's texels are the pixel's box, level 1 a
+// fit blurred over twice its width). Twin: LEVEL0_REACH, LEVEL0_GRID_MAX; the taps in
+// all are at most shading.glsl's MAX_SURFACE_TAPS (16).
+const float LEVEL0_REACH = 4.0;
+#define LEVEL0_GRID_MAX 4u
+#define LEVEL0_TAPS_MAX 16u
+
+// Level 0's grid over a footprint whose minor axis spans `minor` texels, N anisotropic
+// lookups: about one lookup per texel across (ceil(minor), from FILTER_GRID to
+// LEVEL0_GRID_MAX), N times as many along the major axis, at most 16 in all. Twin:
+// level0_grid_taps.
+uvec2 level0_grid_taps(float minor, uint n) {
+    uint across = minor > 0.0 ? max(uint(min(ceil(minor), float(LEVEL0_GRID_MAX))), FILTER_GRID) : FILTER_GRID;
+    uint along = min(max(n, 1u) * across, max(LEVEL0_TAPS_MAX / across, across));
+    return uvec2(along, across);
+}
+
+// Level 1's weight over level 0's grid for a box grid whose lookups' level before
+// clamping is lambda_b: 0 while they span at most LEVEL0_REACH / FILTER_GRID texels, 1
+// where the box grid's level reaches 1, linear between. Twin: level0_reach_weight.
+float level0_reach_weight(float lambda_b) {
+    float reach_from = log2(LEVEL0_REACH / float(FILTER_GRID)) + FILTER_OFFSET;
+    float w = (lambda_b - reach_from) / (1.0 - reach_from);
+    return isnan(w) ? 1.0 : clamp(w, 0.0, 1.0);
+}
+
 // Level 0's grid traces each lookup's own ray once it spans FINE_TRACE_FROM texels along
 // its longer axis; a close-up's narrower grid reads beside the hit. Twin:
 // fine_grid_traced, FINE_TRACE_FROM.
@@ -236,7 +263,18 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.fine_taps_b = 1u;
     BoxGrid g;
     if (!box_grid(major, minor, taps, lambda, bias, g)) {
-        linear_levels(lambda, last, m.lo, m.hi, m.weight);
+        // With a grid, level 0 alone up to LEVEL0_REACH texels (lambda <= 1 here);
+        // without one, Vulkan's linear-mip blend.
+        float blend;
+        if (FILTER_GRID > 1u) {
+            m.lo = 0u;
+            m.hi = 0u;
+            m.weight = 0.0;
+            blend = clamp(lambda, 0.0, 1.0);
+        } else {
+            linear_levels(lambda, last, m.lo, m.hi, m.weight);
+            blend = m.weight;
+        }
         m.axis = axis;
         m.taps = taps;
         m.minor_axis = vec2(0.0);
@@ -248,20 +286,35 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
         // Along the major axis at most the minor axis's width in texels: a grazing
         // view's plane offsets land on texels its rays do not meet.
         float beyond = fine_grid_spread(minor);
-        if (m.lo == 0u && (m.weight > 0.0 || beyond > 0.0) && FILTER_GRID > 1u) {
-            float blended = min(2.0 * m.weight, 1.0);
+        if (m.lo == 0u && (blend > 0.0 || beyond > 0.0) && FILTER_GRID > 1u) {
+            float blended = min(2.0 * blend, 1.0);
             m.fine_axis_a = axis * max(blended, beyond * minor / major);
             m.fine_axis_b = minor_axis * max(blended, beyond);
-            m.fine_taps_a = grid_taps(taps, FILTER_GRID);
-            m.fine_taps_b = FILTER_GRID;
+            uvec2 t = level0_grid_taps(minor, taps);
+            m.fine_taps_a = t.x;
+            m.fine_taps_b = t.y;
         }
         return m;
     }
-    linear_levels(g.level, last, m.lo, m.hi, m.weight);
     m.axis = axis * (g.span_major / major);
     m.taps = g.taps_major;
     m.minor_axis = minor_axis * (g.span_minor / max(minor, 1e-6));
     m.taps_minor = g.taps_minor;
+    // Level 0's grid blended with level 1's box grid up to where the box grid's level
+    // reaches 1 (level0_reach_weight).
+    float reach = level0_reach_weight(log2(major / float(grid_taps(taps, FILTER_GRID))) + FILTER_OFFSET + bias);
+    if (reach < 1.0 && last > 0u) {
+        m.lo = 0u;
+        m.hi = 1u;
+        m.weight = reach;
+        m.fine_axis_a = axis;
+        m.fine_axis_b = minor_axis;
+        uvec2 t = level0_grid_taps(minor, taps);
+        m.fine_taps_a = t.x;
+        m.fine_taps_b = t.y;
+        return m;
+    }
+    linear_levels(g.level, last, m.lo, m.hi, m.weight);
     return m;
 }
 

@@ -291,6 +291,48 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
     ((minor - FINE_GRID_FROM) / (FINE_GRID_FULL - FINE_GRID_FROM)).clamp(0.0, 1.0)
 }
 
+/// Level 0 is read through its own grid of nearest texels up to footprints this many
+/// level-0 texels across (measured by the box grid's lookups: `FILTER_GRID` of them per
+/// round footprint, each spanning up to `LEVEL0_REACH / FILTER_GRID` texels), and level 1
+/// only beyond. At 2–4 texels per pixel the prefiltered level 1 is the coarse fit of a
+/// 2×2 footprint, bilinearly blurred over twice the pixel's width, while a 4×4 grid of
+/// level 0's own texels is the pixel's box: 32 px far views (4 texels per pixel, chain at
+/// 1 sample) satin 8.2 / 8.0 / 12.2% → 6.8 / 4.9 / 11.8% at 0° / 45° / 70°, twill 6.2 /
+/// 4.6 / 6.7 → 5.0 / 2.9 / 6.5%, the surface alone (satin, 0°) 7.8 → 2.5%; the lookups
+/// read where the flyaway rays landed, so they cost shading, not traces
+/// (baker/PREFILTER_MEASUREMENTS.md, "Level 0 up to four texels per pixel").
+pub const LEVEL0_REACH: f32 = 4.0;
+
+/// Most lookups per axis of level 0's grid, and in all (shaders/common/shading.glsl's
+/// `MAX_SURFACE_TAPS`).
+pub const LEVEL0_GRID_MAX: u32 = 4;
+pub const MAX_SURFACE_TAPS: u32 = 16;
+
+/// The lookups of level 0's grid over a footprint whose minor axis spans `minor`
+/// level-0 texels, with `n` anisotropic lookups and `grid` lookups per axis of the box
+/// filter: about one per texel across (⌈minor⌉, from `grid` to [`LEVEL0_GRID_MAX`]) and
+/// n times as many along the major axis, at most [`MAX_SURFACE_TAPS`] in all. Up to two
+/// texels across this is the box grid's (`grid_taps(n, grid)` × `grid`). Twin:
+/// `level0_grid_taps` in shaders/common/level.glsl.
+pub fn level0_grid_taps(minor: f32, n: u32, grid: u32) -> (u32, u32) {
+    let across = if minor > 0.0 { (minor.ceil().min(LEVEL0_GRID_MAX as f32) as u32).max(grid) } else { grid };
+    let along = (n.max(1) * across).min((MAX_SURFACE_TAPS / across).max(across));
+    (along, across)
+}
+
+/// The weight of level 1 (read through its box grid) over level 0's grid, for a box
+/// grid whose lookups' level before clamping is `lambda_b`
+/// (log2(major / lookups along it) + [`FILTER_OFFSET`] + bias): 0 while those lookups span
+/// at most `LEVEL0_REACH / FILTER_GRID` texels, 1 where the box grid's level reaches 1,
+/// linear in the level between (footprints of 4 to 6.9 texels for a round one), so that
+/// the switch from level 0's data to level 1's is a blend. Twin: `level0_reach_weight` in
+/// shaders/common/level.glsl.
+pub fn level0_reach_weight(lambda_b: f32) -> f32 {
+    let from = (LEVEL0_REACH / FILTER_GRID as f32).log2() + FILTER_OFFSET;
+    let w = (lambda_b - from) / (1.0 - from);
+    if w.is_nan() { 1.0 } else { w.clamp(0.0, 1.0) }
+}
+
 /// Level 0's grid traces each lookup's own parallel ray to where it meets the height
 /// field once the grid spans this many texels (along its longer axis); a narrower grid,
 /// a close-up's, reads its lookups beside the hit, on the plane. Within half a texel the
@@ -429,7 +471,10 @@ impl<'a> Scene<'a> {
         let fly = linear_levels(fly_grid.lambda, last);
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
-            let (lo, hi, weight) = linear_levels(lambda, last);
+            // With a grid, level 0 alone up to [`LEVEL0_REACH`] texels (λ ≤ 1 here);
+            // without one, Vulkan's linear-mip blend.
+            let (lo, hi, weight) = if g > 1 { (0, 0, 0.0) } else { linear_levels(lambda, last) };
+            let blend = if g > 1 { lambda.clamp(0.0, 1.0) } else { weight };
             // Level 0 is read through a grid of its nearest texels (grid_taps(N, G) × G,
             // evenly over the footprint) once the footprint is a good part of a texel: one
             // texel at the hit point-samples a box that a texel's border may cross, which
@@ -442,20 +487,27 @@ impl<'a> Scene<'a> {
             // blended", "Level 0 through a grid from a quarter texel across"). Close-ups,
             // at most a quarter texel per pixel, read the hit's texel alone, as before.
             let beyond = fine_grid_spread(minor);
-            let (fine_axes, fine_taps) = if lo == 0 && (weight > 0.0 || beyond > 0.0) && g > 1 {
+            let (fine_axes, fine_taps) = if lo == 0 && (blend > 0.0 || beyond > 0.0) && g > 1 {
                 // Along the major axis, a grazing view's offsets in the plane land on texels
                 // the pixel's rays do not meet (parallax): there the minor axis's width in
                 // texels, at most (measured at 70°: the full major spread made satin's
                 // far view 24% too bright).
-                let blended = (2.0 * weight).min(1.0);
+                let blended = (2.0 * blend).min(1.0);
                 let spread_minor = blended.max(beyond);
                 let spread_major = blended.max(beyond * minor / major);
-                ((axis * spread_major, minor_axis * spread_minor), (grid_taps(n, g), g))
+                ((axis * spread_major, minor_axis * spread_minor), level0_grid_taps(minor, n, g))
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
             };
             return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes, fine_taps };
         };
+        let (axis_b, minor_b) = (axis * (grid.span_major / major), minor_axis * (grid.span_minor / minor.max(1e-6)));
+        // Level 0's grid blended with level 1's box grid up to where the box grid's level
+        // reaches 1 ([`level0_reach_weight`]).
+        let reach = level0_reach_weight((major / grid_taps(n, g) as f32).log2() + FILTER_OFFSET + bias);
+        if reach < 1.0 && last > 0 {
+            return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
+        }
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
         LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
     }
