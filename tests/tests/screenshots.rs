@@ -172,7 +172,8 @@ fn baked_twill_under_the_built_in_sky() {
 }
 
 /// The baked felt and satin seen from afar at a grazing angle: the periodic sheet at
-/// 6 texels per pixel across and 15 along the view, so every pixel reads the coarse
+/// 12 texels per pixel across and 30 along the view (level 0's grid reaches 4–7
+/// texels), so every pixel reads the coarse
 /// levels (their view tilts, compact records, and coarse flyaways with spread records
 /// and two axis groups, format 1.8) through the box filter. The GPU image is the golden;
 /// the CPU twin draws the same.
@@ -192,7 +193,7 @@ fn baked_presets_seen_from_afar() {
         let g = pass.upload(&model, true).unwrap();
         let b = model.bounds();
         let top = Vec3::new(b.center().x, b.center().y, b.max.z);
-        let cam = Camera::orbit_orthographic(65.0, 30.0, top, 16.0 * b.size().length(), 16.0 * b.size().x, 160, 120);
+        let cam = Camera::orbit_orthographic(65.0, 30.0, top, 32.0 * b.size().length(), 32.0 * b.size().x, 160, 120);
         let frame = pass.render(&g, &cam, &[light], &opts, None).unwrap();
         let (cpu, cpu_stats) = fabric_runtime::cpu::render_with_stats(&model, &cam, &[light], &opts).unwrap();
         let coarse_pixels = |l: &[u64]| l.iter().skip(1).sum::<u64>() as f64 / l.iter().sum::<u64>().max(1) as f64;
