@@ -34,8 +34,9 @@ struct LevelMix {
     vec2 fly_axis_b;
     uint fly_taps_a;
     uint fly_taps_b;
-    // Level 0's grid where its footprint is wider than a texel or it is blended with
-    // level 1 (0 < lambda < 1): fine_taps_a x fine_taps_b nearest-texel lookups spread
+    // Level 0's grid where its footprint is wider than a quarter texel, up to
+    // LEVEL0_REACH texels, blended with level 1 beyond: fine_taps_a x fine_taps_b
+    // nearest-texel lookups spread
     // over fine_axis_a, fine_axis_b beside the hit (1 x 1: the hit's texel alone).
     // Twin: LevelMix::fine_*.
     vec2 fine_axis_a;

@@ -231,7 +231,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                     tap_xy[k] = tap_surface_point(o, d, tap_offset(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, k), p, floor_level);
                 }
             }
-            // Level 0's grid (a footprint past a quarter texel, or blended with level 1), each
+            // Level 0's grid (a footprint past a quarter texel, up to level 0's reach), each
             // lookup, past half a texel across, where its own parallel ray meets the height
             // field (Scene::trace_mixed).
             uint n0 = min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS);

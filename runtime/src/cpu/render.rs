@@ -77,7 +77,8 @@ pub struct LevelMix {
     pub fly_axes: (Vec2, Vec2),
     pub fly_taps: (u32, u32),
     /// Level 0's grid where its footprint spans more than a quarter texel
-    /// ([`fine_grid_spread`]) or it is blended with level 1 (0 < λ < 1): `fine_taps.0` ×
+    /// ([`fine_grid_spread`]), up to [`LEVEL0_REACH`] texels and blended with level 1
+    /// beyond ([`level0_reach_weight`]): `fine_taps.0` ×
     /// `fine_taps.1` nearest-texel lookups spread over `fine_axes` (world x–y; the
     /// footprint's major axis first) beside the hit ((1, 1): the hit's texel alone).
     pub fine_axes: (Vec2, Vec2),
