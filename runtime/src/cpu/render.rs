@@ -298,8 +298,8 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
 /// only beyond. At 2–4 texels per pixel the prefiltered level 1 is the coarse fit of a
 /// 2×2 footprint, bilinearly blurred over twice the pixel's width, while a 4×4 grid of
 /// level 0's own texels is the pixel's box: 32 px far views (4 texels per pixel, chain at
-/// 1 sample) satin 8.2 / 8.0 / 12.2% → 6.8 / 4.9 / 11.8% at 0° / 45° / 70°, twill 6.2 /
-/// 4.6 / 6.7 → 5.0 / 2.9 / 6.5%, the surface alone (satin, 0°) 7.8 → 2.5%; the lookups
+/// 1 sample) satin 8.2 / 8.0 / 12.2% → 6.9 / 4.7 / 11.9% at 0° / 45° / 70°, twill 6.2 /
+/// 4.6 / 6.7 → 5.2 / 3.4 / 6.8%, the surface alone (satin, 0°) 7.8 → 2.5%; the lookups
 /// read where the flyaway rays landed, so they cost shading, not traces
 /// (baker/PREFILTER_MEASUREMENTS.md, "Level 0 up to four texels per pixel").
 pub const LEVEL0_REACH: f32 = 4.0;
