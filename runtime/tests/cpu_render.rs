@@ -283,6 +283,16 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
         }
     }
     assert!((level0_reach_weight(f32::NAN), level0_reach_weight(-9.0), level0_reach_weight(9.0)) == (1.0, 0.0, 1.0));
+    // A model without a chain (`fabric bake --no-prefilter`) reads level 0 through its
+    // grid at every distance, not one texel.
+    let mut bare = model.clone();
+    bare.levels.truncate(1);
+    bare.meta.fit_error.truncate(1);
+    let lone = Scene::for_rays(&bare, &[], CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
+    for texels in [3.0f32, 5.0, 10.0, 40.0] {
+        let m = lone.level_mix_axes(Some((Vec2::new(texels * t, 0.0), Vec2::new(0.0, texels * t))));
+        assert!((m.lo, m.hi, m.weight, m.fine_taps) == (0, 0, 0.0, level0_grid_taps(texels, 1, FILTER_GRID)) && (m.fine_axes.0.length() - texels * t).abs() < 1e-4 * texels * t, "{texels} texels: {m:?}");
+    }
     // The bilinear filter (no grid) blends levels 0 and 1 by λ, as Vulkan's linear mips.
     let bilinear = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..Default::default() }).unwrap();
     let m = bilinear.level_mix_axes(Some((Vec2::new(3.0 * t, 0.0), Vec2::new(0.0, 3.0 * t))));

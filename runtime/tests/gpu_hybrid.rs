@@ -127,6 +127,11 @@ fn gpu_matches_the_cpu_twin() {
     ] {
         assert_twins_agree(case.name, &compare(&pass, &synthetic, &lights, &case));
     }
+    // A model without a chain, from afar: level 0 through its grid of 4 × 4 nearest texels.
+    let mut bare = synthetic.clone();
+    bare.levels.truncate(1);
+    bare.meta.fit_error.truncate(1);
+    assert_twins_agree("synthetic far without a chain, level 0's grid", &compare(&pass, &bare, &lights, &Case { name: "bare far", camera: far_synth, options: CpuRenderOptions { periodic: true, ..opts.clone() } }));
     // Three texels per pixel from above: level 0 alone, read through its 3 × 3 grid of
     // nearest texels (LevelMix::fine_taps).
     let mid = Case { name: "synthetic mid distance, level 0 through its grid", camera: Camera::orbit_orthographic(5.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 1.5, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };

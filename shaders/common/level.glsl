@@ -303,11 +303,18 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.taps_minor = g.taps_minor;
     // Level 0's grid blended with level 1's box grid up to where the box grid's level
     // reaches 1 (level0_reach_weight).
+    // A model without a chain reads level 0 through its grid at every distance.
     float reach = level0_reach_weight(log2(major / float(grid_taps(taps, FILTER_GRID))) + FILTER_OFFSET + bias);
-    if (reach < 1.0 && last > 0u) {
+    if (reach < 1.0 || last == 0u) {
         m.lo = 0u;
-        m.hi = 1u;
-        m.weight = reach;
+        m.hi = last == 0u ? 0u : 1u;
+        m.weight = last == 0u ? 0.0 : reach;
+        if (last == 0u) {
+            m.axis = vec2(0.0);
+            m.taps = 1u;
+            m.minor_axis = vec2(0.0);
+            m.taps_minor = 1u;
+        }
         m.fine_axis_a = axis;
         m.fine_axis_b = minor_axis;
         uvec2 t = level0_grid_taps(minor, taps);

@@ -506,7 +506,11 @@ impl<'a> Scene<'a> {
         // Level 0's grid blended with level 1's box grid up to where the box grid's level
         // reaches 1 ([`level0_reach_weight`]).
         let reach = level0_reach_weight((major / grid_taps(n, g) as f32).log2() + FILTER_OFFSET + bias);
-        if reach < 1.0 && last > 0 {
+        // A model without a chain reads level 0 through its grid at every distance.
+        if last == 0 {
+            return LevelMix { lo: 0, hi: 0, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
+        }
+        if reach < 1.0 {
             return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
         }
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
