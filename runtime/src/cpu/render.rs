@@ -476,14 +476,14 @@ impl<'a> Scene<'a> {
             // without one, Vulkan's linear-mip blend.
             let (lo, hi, weight) = if g > 1 { (0, 0, 0.0) } else { linear_levels(lambda, last) };
             let blend = if g > 1 { lambda.clamp(0.0, 1.0) } else { weight };
-            // Level 0 is read through a grid of its nearest texels (grid_taps(N, G) × G,
+            // Level 0 is read through a grid of its nearest texels ([`level0_grid_taps`],
             // evenly over the footprint) once the footprint is a good part of a texel: one
             // texel at the hit point-samples a box that a texel's border may cross, which
             // aliases (sharp texel-to-texel contrast at ½–2 texels per pixel). The grid spreads
             // with the footprint's minor axis, from nothing at [`FINE_GRID_FROM`] texels
             // to the whole footprint at [`FINE_GRID_FULL`] (along the major axis as wide
-            // in texels as along the minor), and where level 1 is blended in, at least
-            // from nothing at λ = 0 to the whole footprint at λ = ½
+            // in texels as along the minor), and past λ = 0 (where level 1 was once
+            // blended in) at least from nothing at λ = 0 to the whole footprint at λ = ½
             // (baker/PREFILTER_MEASUREMENTS.md, "Level 0 through a grid where it is
             // blended", "Level 0 through a grid from a quarter texel across"). Close-ups,
             // at most a quarter texel per pixel, read the hit's texel alone, as before.
@@ -514,7 +514,7 @@ impl<'a> Scene<'a> {
             return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
         }
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
-        LevelMix { lo, hi, weight, axis: axis * (grid.span_major / major), taps: grid.taps_major, minor_axis: minor_axis * (grid.span_minor / minor.max(1e-6)), taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
+        LevelMix { lo, hi, weight, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
