@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -39,6 +39,26 @@ fn views(model: &HybridModel, pixels: u32, label: &str) {
         let chain_ss = ss(8);
         let chain_2 = ss(2);
         let e = relative_rmse(&chain, &truth).unwrap();
+        if let Ok(dir) = std::env::var("IMAGES") {
+            // `IMAGES=DIR`: truth, chain and their difference per view, as EXR-free PNGs.
+            let tag = format!("{dir}/{}_{pixels}_{polar}", label.trim().replace(' ', "_"));
+            let m = mean(&truth) as f32;
+            // Side by side, 8× nearest: truth | chain | difference (grey = 0, ±mean = black / white).
+            let (w, h, z) = (truth.width, truth.height, 8u32);
+            let strip = Image::from_fn(3 * w * z + 2 * z, h * z, |x, y| {
+                let (panel, px, py) = (x / (w * z + z), (x % (w * z + z)) / z, y / z);
+                if px >= w {
+                    return glam::Vec3::ONE;
+                }
+                let (t, c) = (truth.get(px, py), chain.get(px, py));
+                match panel {
+                    0 => 0.5 * t / m.max(1e-6),
+                    1 => 0.5 * c / m.max(1e-6),
+                    _ => glam::Vec3::splat(0.5) + 0.5 * (c - t) / m.max(1e-6),
+                }
+            });
+            strip.write(std::path::Path::new(&format!("{tag}.png")), 1.0).unwrap();
+        }
         let e_ss = relative_rmse(&chain_ss, &truth).unwrap();
         let e_2 = relative_rmse(&chain_2, &truth).unwrap();
         println!("{label} {pixels}px polar {polar:>4}: chain {:.1}%  chain 2x2spp {:.1}%  chain 8x8spp {:.1}% (mean {:.3})  mean chain/truth {:.3}", 100.0 * e, 100.0 * e_2, 100.0 * e_ss, mean(&chain_ss) / mean(&truth), mean(&chain) / mean(&truth));
@@ -63,6 +83,10 @@ fn main() {
             Ok("flyaways") => surface_black(&model),
             _ => model,
         };
+        if let Ok(list) = std::env::var("SWEEP_LEVELS") {
+            sweep_levels(&model, &list);
+            return;
+        }
         if std::env::var("SWEEP_SS").is_ok() {
             sweep_supersampled(&model);
             return;
@@ -573,5 +597,35 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
         }
         println!("      cone with the children's clusters {:.1}% (mean {:.3}); children's axes with the node's cluster {:.1}% (mean {:.3})", 100.0 * rel(&i2, &truth), m(&i2) / m(&truth), 100.0 * rel(&i3, &truth), m(&i3) / m(&truth));
         println!("  {polar}° level {level}: as shaded {:.1}% (mean {:.3}), oracle node colour {:.1}% (mean {:.3}), as seen at this view {:.1}% (mean {:.3})", 100.0 * rel(&own, &truth), m(&own) / m(&truth), 100.0 * rel(&orc, &truth), m(&orc) / m(&truth), 100.0 * rel(&exp, &truth), m(&exp) / m(&truth));
+    }
+}
+
+/// `SWEEP_LEVELS=9.8,32`: at those sweep steps, the chain and each fixed level at 4 × 4
+/// samples per pixel against the truth, with their means over the truth's: whether a
+/// step's error is a level's bias or its filtering.
+fn sweep_levels(model: &HybridModel, list: &str) {
+    use fabric_runtime::scene::{Camera, Projection, direction_from_angles};
+    use glam::Vec3;
+    let b = model.bounds();
+    let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
+    let (fov, pixels) = (40f32, 32u32);
+    let pixel_at = 2.0 * (0.5 * fov).to_radians().tan() / pixels as f32;
+    let light = [far_light()];
+    for texels in list.split(',').map(|t| t.trim().parse::<f32>().unwrap()) {
+        let d = texels * model.texel_size().x / pixel_at;
+        let dir = direction_from_angles(45.0, fabric_baker::prefilter::far_view::VIEW_AZIMUTH);
+        let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
+        let f = ((1.6 * texels * std::f32::consts::SQRT_2 * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
+        let big = Camera { width: pixels * f, height: pixels * f, ..camera };
+        let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, ..Default::default() };
+        let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
+        let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
+        let k = (mean(&truth) / mean(&chain)) as f32;
+        let scaled = Image::from_fn(chain.width, chain.height, |x, y| k * chain.get(x, y));
+        println!("{texels:.2} texels/px: chain {:.2}% (mean {:.3}; {:.2}% at the truth's mean)", 100.0 * relative_rmse(&chain, &truth).unwrap(), mean(&chain) / mean(&truth), 100.0 * relative_rmse(&scaled, &truth).unwrap());
+        for level in 1..model.levels.len().min(7) {
+            let im = render(model, &camera, &light, &opt(LevelChoice::Fixed(level as u32), 4)).unwrap();
+            println!("    level {level} at 4x4 spp: {:.2}% (mean {:.3})", 100.0 * relative_rmse(&im, &truth).unwrap(), mean(&im) / mean(&truth));
+        }
     }
 }
