@@ -68,7 +68,7 @@ fn the_kit_readme_documents_every_include() {
         let name = entry.unwrap().file_name().to_string_lossy().into_owned();
         assert!(readme.contains(&format!("common/{name}")), "shaders/README.md does not document common/{name}");
     }
-    for program in ["brdf.glsl", "hybrid.comp", "hybrid_mesh.frag", "example_texel_brdf.comp", "brdf_test_vectors.json"] {
+    for program in ["brdf.glsl", "hybrid.comp", "hybrid_mesh.comp", "hybrid_mesh_id.vert", "example_texel_brdf.comp", "brdf_test_vectors.json"] {
         assert!(readme.contains(program), "shaders/README.md does not mention {program}");
     }
 }

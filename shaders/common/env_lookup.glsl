@@ -1,7 +1,7 @@
 // env_lookup.glsl — reading the prefiltered environment: a direction's (u, v), a
 // level's bilinear lookup, the SG-blurred radiance and the irradiance (paper §7.2,
 // "Extensions"; runtime/HYBRID_FORMAT.md §6). Included by env_shading.glsl and by the
-// mesh pass's sky (hybrid_sky.frag).
+// mesh pass where no triangle is (hybrid_mesh.comp).
 //
 // Twin: runtime/src/scene/env_prefilter.rs (EnvLevel::bilinear, PrefilteredEnv::blurred,
 // PrefilteredEnv::irradiance) and EnvMap::uv (scene/envmap.rs).
@@ -19,7 +19,7 @@ layout(std430, set = 0, binding = 11) readonly buffer EnvBlock { vec4 env_texels
 #define ENV_TAU 6.28318530717959
 
 // Shading directions -> world: the identity for the tile pass; the mesh pass sets its
-// fragment's M = [T_w B_w kN] (tile offsets to world, hybrid_mesh.frag).
+// pixel's M = [T_w B_w kN] (tile offsets to world, hybrid_mesh.comp).
 mat3 g_env_to_world = mat3(1.0);
 
 // EnvMap::uv: world direction -> (u, v) in [0, 1)^2 (Mitsuba's envmap layout, Z up,

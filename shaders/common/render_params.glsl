@@ -55,7 +55,7 @@ layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParam
 layout(std430, set = 0, binding = 8) readonly buffer MaskBlock { float edit_mask[]; };
 
 // The lights shading uses, in tile space: the program fills them (hybrid.comp copies
-// params.lights; hybrid_mesh.frag maps each light into the tile's frame per fragment).
+// params.lights; hybrid_mesh.comp maps each light into the tile's frame per pixel).
 GpuLight g_lights[GPU_MAX_LIGHTS];
 
 // Variants: what the scene does not need is compiled out, not branched over.

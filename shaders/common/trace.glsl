@@ -5,7 +5,7 @@
 //
 // Twin: runtime/src/cpu/render.rs (Scene::enter_top, trace_mixed, march_level_flyaways,
 // shade_surface), function for function. Programs: hybrid.comp (a camera over the tile:
-// the footprint from the neighbouring pixels' rays, as the CPU) and hybrid_mesh.frag (the
+// the footprint from the neighbouring pixels' rays, as the CPU) and hybrid_mesh.comp (the
 // tile mapped onto a mesh's UVs: the footprint from screen-space derivatives).
 #ifndef TRACE_GLSL
 #define TRACE_GLSL

@@ -117,7 +117,7 @@ impl FrameLoop {
                 pass.update(frame, mesh, camera, &light, *base_color)?;
             }
             ViewContent::Hybrid { pass, model, mesh, uv_scale, draw } => {
-                let d = pass.prepare_mesh(model, mesh, *uv_scale, camera, lights, options, None)?;
+                let d = pass.prepare_mesh(model, mesh, *uv_scale, camera, lights, options, None, &self.target)?;
                 self.variant = Some(d.variant);
                 *draw = Some(d);
             }

@@ -21,9 +21,9 @@ use crate::hybrid::HybridModel;
 use crate::hybrid::gpu_layout::{GPU_ENV_SLOTS, GPU_MAX_LIGHTS, GpuCamera, GpuEnv, GpuLight, GpuModel, GpuRenderParams, LEVEL_AUTO, LEVEL_FIXED, LEVEL_NEAREST};
 use crate::image::Image;
 use super::mesh_pass::depth_range;
-use super::target::{COLOR_FORMAT, DEPTH_FORMAT, OffscreenTarget};
-use crate::scene::{Camera, Light, Mesh, Vertex};
-use crate::vk::{BindingKind, Buffer, ColorTarget, DescriptorSet, GraphicsDesc, Recorder, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
+use super::target::{DEPTH_FORMAT, OffscreenTarget};
+use crate::scene::{Camera, Light, Mesh};
+use crate::vk::{BindingKind, Buffer, ColorTarget, DescriptorSet, GraphicsDesc, Image2d, Recorder, DescriptorSetLayout, Device, MemoryLocation, Pipeline, PipelineLayout, Resource, ShaderModule, Specialization, Timestamps, VkError, vk};
 
 /// Why a GPU render cannot run.
 #[derive(Debug, thiserror::Error)]
@@ -106,17 +106,18 @@ pub struct HybridMesh {
 
 /// One prepared frame of the mesh pass ([`HybridPass::prepare_mesh`]).
 pub struct MeshDraw {
+    /// The visibility pass (hybrid_mesh_id.vert/.frag): each pixel's nearest triangle.
+    ids_pipeline: Arc<Pipeline>,
+    /// The shading pass (hybrid_mesh.comp): each pixel traced once from its triangle.
     pipeline: Arc<Pipeline>,
-    /// The environment behind the meshes (hybrid_sky.frag), drawn first; none without a
-    /// map (the clear colour is the background).
-    sky: Option<Arc<Pipeline>>,
+    /// Each pixel's triangle number + 1 (R32_UINT, 0: none), the target's size.
+    ids: Image2d,
     set: DescriptorSet,
     _params: Buffer,
     _mask: Buffer,
     _env: Buffer,
     _unused: Buffer,
     push: MeshPush,
-    background: Vec3,
     pub variant: Variant,
     pub levels: usize,
 }
@@ -140,15 +141,27 @@ pub struct HybridPass {
     pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
     mesh_set_layout: DescriptorSetLayout,
     mesh_layout: Arc<PipelineLayout>,
-    mesh_vert: ShaderModule,
-    mesh_frag: ShaderModule,
+    ids_vert: ShaderModule,
+    ids_frag: ShaderModule,
+    ids_pipeline: Mutex<Option<Arc<Pipeline>>>,
+    mesh_module: ShaderModule,
     mesh_pipelines: Mutex<HashMap<Variant, Arc<Pipeline>>>,
-    sky_vert: ShaderModule,
-    sky_frag: ShaderModule,
-    sky_pipeline: Mutex<Option<Arc<Pipeline>>>,
 }
 
-/// Push constants of hybrid_mesh.vert/.frag. 80 bytes.
+/// The mesh pass's bindings: the compute pass's 0..=13 (9 and 10, its image and
+/// statistics, unused), 14 and 15 the mesh's vertices and indices, 16 the triangle
+/// numbers, 17 the target's colour image.
+const MESH_BINDINGS: [BindingKind; 18] = {
+    let mut kinds = [BindingKind::StorageBuffer; 18];
+    kinds[16] = BindingKind::StorageImage;
+    kinds[17] = BindingKind::StorageImage;
+    kinds
+};
+
+/// The visibility pass's target format: a triangle number + 1 per pixel.
+const TRIANGLE_ID_FORMAT: vk::Format = vk::Format::R32_UINT;
+
+/// Push constants of the mesh pass (hybrid_mesh_id.vert, hybrid_mesh.comp). 80 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct MeshPush {
@@ -165,12 +178,12 @@ impl HybridPass {
         let module = ShaderModule::embedded_or_edited(device, "hybrid.comp")?;
         let set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::COMPUTE)?;
         let layout = Arc::new(PipelineLayout::new(device, &[&set_layout], 0, vk::ShaderStageFlags::COMPUTE)?);
-        let mesh_set_layout = DescriptorSetLayout::new(device, &[BindingKind::StorageBuffer; 14], vk::ShaderStageFlags::FRAGMENT)?;
-        let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT)?);
-        let mesh_vert = ShaderModule::embedded_or_edited(device, "hybrid_mesh.vert")?;
-        let mesh_frag = ShaderModule::embedded_or_edited(device, "hybrid_mesh.frag")?;
-        let sky_vert = ShaderModule::embedded_or_edited(device, "hybrid_sky.vert")?;
-        let sky_frag = ShaderModule::embedded_or_edited(device, "hybrid_sky.frag")?;
+        let mesh_stages = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::COMPUTE;
+        let mesh_set_layout = DescriptorSetLayout::new(device, &MESH_BINDINGS, mesh_stages)?;
+        let mesh_layout = Arc::new(PipelineLayout::new(device, &[&mesh_set_layout], size_of::<MeshPush>() as u32, mesh_stages)?);
+        let ids_vert = ShaderModule::embedded_or_edited(device, "hybrid_mesh_id.vert")?;
+        let ids_frag = ShaderModule::embedded_or_edited(device, "hybrid_mesh_id.frag")?;
+        let mesh_module = ShaderModule::embedded_or_edited(device, "hybrid_mesh.comp")?;
         Ok(HybridPass {
             device: device.clone(),
             set_layout,
@@ -179,12 +192,11 @@ impl HybridPass {
             pipelines: Mutex::new(HashMap::new()),
             mesh_set_layout,
             mesh_layout,
-            mesh_vert,
-            mesh_frag,
+            ids_vert,
+            ids_frag,
+            ids_pipeline: Mutex::new(None),
+            mesh_module,
             mesh_pipelines: Mutex::new(HashMap::new()),
-            sky_vert,
-            sky_frag,
-            sky_pipeline: Mutex::new(None),
         })
     }
 
@@ -238,48 +250,31 @@ impl HybridPass {
         if let Some(p) = cache.get(&v) {
             return Ok(p.clone());
         }
-        let name = v.name("hybrid mesh");
-        let f = vk::Format::R32G32B32_SFLOAT;
-        let p = Arc::new(Pipeline::graphics(
-            &self.device,
-            &GraphicsDesc {
-                name: &name,
-                vertex: &self.mesh_vert,
-                fragment: &self.mesh_frag,
-                layout: &self.mesh_layout,
-                vertex_stride: size_of::<Vertex>() as u32,
-                vertex_attributes: &[(f, 0), (f, 12), (vk::Format::R32G32B32A32_SFLOAT, 24), (vk::Format::R32G32_SFLOAT, 40)],
-                color_format: COLOR_FORMAT,
-                depth_format: Some(DEPTH_FORMAT),
-                cull: vk::CullModeFlags::NONE,
-                specialization: v.specialization(),
-            },
-        )?);
+        let p = Arc::new(Pipeline::compute(&self.device, &v.name("hybrid mesh"), &self.mesh_module, &self.mesh_layout, &v.specialization())?);
         cache.insert(v, p.clone());
         Ok(p)
     }
 
-    /// The sky behind the meshes: one pipeline (HAS_ENV on; the map's visibility is a
-    /// parameter), built on first use.
-    fn sky_pipeline(&self) -> Result<Arc<Pipeline>, GpuRenderError> {
-        let mut slot = self.sky_pipeline.lock().unwrap_or_else(|e| e.into_inner());
+    /// The visibility pass's pipeline (one for every variant), built on first use.
+    fn ids_pipeline(&self) -> Result<Arc<Pipeline>, GpuRenderError> {
+        let mut slot = self.ids_pipeline.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = slot.as_ref() {
             return Ok(p.clone());
         }
-        let v = Variant { flyaways: false, shadows: false, lights: 0, relief: false, lobes: 1, env: true, transmission: false, filter_grid: 1, fly_grid: 1 };
         let p = Arc::new(Pipeline::graphics(
             &self.device,
             &GraphicsDesc {
-                name: "hybrid sky",
-                vertex: &self.sky_vert,
-                fragment: &self.sky_frag,
+                name: "hybrid mesh triangles",
+                vertex: &self.ids_vert,
+                fragment: &self.ids_frag,
                 layout: &self.mesh_layout,
+                // Vertices pulled from bindings 14 and 15.
                 vertex_stride: 0,
                 vertex_attributes: &[],
-                color_format: COLOR_FORMAT,
+                color_format: TRIANGLE_ID_FORMAT,
                 depth_format: Some(DEPTH_FORMAT),
                 cull: vk::CullModeFlags::NONE,
-                specialization: v.specialization(),
+                specialization: Specialization::new(),
             },
         )?);
         *slot = Some(p.clone());
@@ -292,8 +287,8 @@ impl HybridPass {
             return Err(VkError::Invalid("mesh has no triangles".into()).into());
         }
         Ok(HybridMesh {
-            vertices: Buffer::with_data(&self.device, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
-            indices: Buffer::with_data(&self.device, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            vertices: Buffer::with_data(&self.device, "hybrid mesh vertices", bytemuck::cast_slice(&mesh.vertices), vk::BufferUsageFlags::STORAGE_BUFFER)?,
+            indices: Buffer::with_data(&self.device, "hybrid mesh indices", bytemuck::cast_slice(&mesh.indices), vk::BufferUsageFlags::STORAGE_BUFFER)?,
             index_count: mesh.indices.len() as u32,
             triangles: mesh.indices.len() / 3,
             bounds: mesh.bounds(),
@@ -301,10 +296,11 @@ impl HybridPass {
     }
 
     /// Everything one frame of `model` on `mesh` needs (`uv_scale` repeats of the tile
-    /// per UV unit, seen by `camera` under `lights`): validated, buffers written. Keep it
-    /// alive until the frame that records it has completed.
-    #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
-    pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<MeshDraw, GpuRenderError> {
+    /// per UV unit, seen by `camera` under `lights`, drawn into `target`, whose size is
+    /// the camera's): validated, buffers written. Keep it alive until the frame that
+    /// records it has completed.
+    #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh, its UV scale and the target
+    pub fn prepare_mesh(&self, model: &GpuHybridModel, mesh: &HybridMesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>, target: &OffscreenTarget) -> Result<MeshDraw, GpuRenderError> {
         let lights = &options.lights_with_env(lights)[..];
         let shadows = validate_view(&model.model, camera, lights, options)?;
         if lights.len() > GPU_MAX_LIGHTS {
@@ -324,44 +320,51 @@ impl HybridPass {
         // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
         let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
         let mut resources: Vec<Resource<'_>> = model.buffers[..7].iter().map(Resource::Buffer).collect();
+        if (target.color.width, target.color.height) != (camera.width, camera.height) {
+            return Err(VkError::Invalid(format!("target {}x{} for a {}x{} camera", target.color.width, target.color.height, camera.width, camera.height)).into());
+        }
+        let ids = Image2d::new(&self.device, "hybrid mesh triangles", camera.width, camera.height, TRIANGLE_ID_FORMAT, vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE)?;
         resources.extend([Resource::Buffer(&params), Resource::Buffer(&mask), Resource::Buffer(&unused), Resource::Buffer(&unused), Resource::Buffer(&env_buf), Resource::Buffer(&model.buffers[7]), Resource::Buffer(&model.buffers[8])]);
+        resources.extend([Resource::Buffer(&mesh.vertices), Resource::Buffer(&mesh.indices), Resource::Storage(&ids), Resource::Storage(&target.color)]);
         let set = DescriptorSet::new(&self.device, &self.mesh_set_layout, &resources)?;
         let (near, far) = depth_range(camera, mesh.bounds);
         let push = MeshPush { view_proj: (camera.projection_matrix(near, far) * camera.view_matrix()).to_cols_array_2d(), uv_scale: uv_scale.to_array(), pad: [0.0; 2] };
-        let sky = if options.env.is_some() { Some(self.sky_pipeline()?) } else { None };
-        Ok(MeshDraw { pipeline, sky, set, _params: params, _mask: mask, _env: env_buf, _unused: unused, push, background: options.background, variant, levels: model.levels })
+        let ids_pipeline = self.ids_pipeline()?;
+        Ok(MeshDraw { ids_pipeline, pipeline, ids, set, _params: params, _mask: mask, _env: env_buf, _unused: unused, push, variant, levels: model.levels })
     }
 
-    /// Records `draw` of `mesh` into `target` (attachments cleared to the background,
-    /// then the environment behind where there is one; the color image is left in
-    /// COLOR_ATTACHMENT_OPTIMAL).
+    /// Records `draw` of `mesh` into `target` (the one `draw` was prepared for): the
+    /// visibility pass leaves each pixel its nearest triangle, then the compute pass
+    /// shades every pixel once — the fabric where a triangle is, the environment or the
+    /// background elsewhere. The color image is left in COLOR_ATTACHMENT_OPTIMAL.
     pub fn record_mesh(&self, rec: &Recorder<'_>, target: &OffscreenTarget, mesh: &HybridMesh, draw: &MeshDraw) {
-        let bg = draw.background;
         target.record_begin(rec);
-        rec.begin_rendering(&ColorTarget { image: &target.color, clear: [bg.x, bg.y, bg.z, 1.0] }, Some(&target.depth));
-        if let Some(sky) = &draw.sky {
-            rec.bind_pipeline(sky);
-            rec.bind_sets(sky, &[&draw.set]);
-            rec.draw(3);
-        }
+        rec.image_barrier(&draw.ids, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+        // 0: no triangle (the float 0.0's bits are the integer 0).
+        rec.begin_rendering(&ColorTarget { image: &draw.ids, clear: [0.0; 4] }, Some(&target.depth));
+        rec.bind_pipeline(&draw.ids_pipeline);
+        rec.bind_sets(&draw.ids_pipeline, &[&draw.set]);
+        rec.push_constants(&draw.ids_pipeline, bytemuck::bytes_of(&draw.push));
+        rec.draw(mesh.index_count);
+        rec.end_rendering();
+        rec.image_barrier(&draw.ids, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::GENERAL);
+        rec.image_barrier(&target.color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::GENERAL);
         rec.bind_pipeline(&draw.pipeline);
         rec.bind_sets(&draw.pipeline, &[&draw.set]);
         rec.push_constants(&draw.pipeline, bytemuck::bytes_of(&draw.push));
-        rec.bind_vertex_buffer(&mesh.vertices);
-        rec.bind_index_buffer_u32(&mesh.indices);
-        rec.draw_indexed(mesh.index_count);
-        rec.end_rendering();
+        rec.dispatch(target.color.width.div_ceil(8), target.color.height.div_ceil(8), 1);
+        rec.image_barrier(&target.color, vk::ImageLayout::GENERAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
     }
 
     /// Renders `model` (uploaded periodic: the tile repeats) on `mesh`, `uv_scale`
     /// repeats of the tile per UV unit, seen by `camera` under `lights`, one sample per
-    /// pixel (hybrid_mesh.frag states how the tile is mapped and where this differs
+    /// pixel (hybrid_mesh.comp states how the tile is mapped and where this differs
     /// from [`HybridPass::render`]).
     #[allow(clippy::too_many_arguments)] // render's arguments plus the mesh and its UV scale
     pub fn render_mesh(&self, model: &GpuHybridModel, mesh: &Mesh, uv_scale: Vec2, camera: &Camera, lights: &[Light], options: &CpuRenderOptions, variant: Option<Variant>) -> Result<HybridFrame, GpuRenderError> {
         let gpu_mesh = self.upload_mesh(mesh)?;
-        let draw = self.prepare_mesh(model, &gpu_mesh, uv_scale, camera, lights, options, variant)?;
         let target = OffscreenTarget::new(&self.device, camera.width, camera.height)?;
+        let draw = self.prepare_mesh(model, &gpu_mesh, uv_scale, camera, lights, options, variant, &target)?;
         let timestamps = Timestamps::new(&self.device, 2)?;
         self.device.record_and_run("hybrid mesh pass", |rec| {
             rec.reset_timestamps(&timestamps);
