@@ -173,4 +173,12 @@ fn bad_parameters_and_sizes_are_errors() {
     q.set("voxel_size=0.0005").unwrap();
     let e = generate(&q, [4096, 4096, 32], 1).unwrap_err().to_string();
     assert!(e.contains("segments"), "{e}");
+    // Values that once overflowed a count or asked for tens of GB are refused by name.
+    for (preset, set) in [(Preset::Twill, "fabric.yarn.flyaways.hair_density=1e30"), (Preset::Twill, "fabric.warp_spacing=1e-9"), (Preset::Twill, "fabric.yarn.fiber_twist=1e6"), (Preset::Twill, "fabric.yarn.migration_period=1e-7"), (Preset::Felt, "fabric.fiber_length=1e-30"), (Preset::Felt, "fiber.diameter=1e30")] {
+        let mut q = preset.params();
+        q.set(set).unwrap();
+        let key = set.split('=').next().unwrap();
+        let e = generate(&q, [16, 16, 8], 1).unwrap_err().to_string();
+        assert!(e.contains(key) && e.contains("must be in"), "{set}: {e}");
+    }
 }

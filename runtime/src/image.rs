@@ -102,8 +102,7 @@ impl Image {
             std::fs::create_dir_all(dir).map_err(|error| ImageError::Io { path: dir.into(), error })?;
         }
         match extension(path).as_deref() {
-            Some("png") => image::save_buffer(path, &self.to_srgb8(exposure), self.width, self.height, image::ExtendedColorType::Rgb8)
-                .map_err(|error| ImageError::Png { path: path.into(), error }),
+            Some("png") => write_png_rgb8(path, &self.to_srgb8(exposure), self.width, self.height),
             Some("exr") => {
                 let w = self.width as usize;
                 exr::prelude::write_rgb_file(path, w, self.height as usize, |x, y| {
@@ -149,6 +148,18 @@ fn extension(path: &Path) -> Option<String> {
     path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase())
 }
 
+/// Writes 8-bit RGB rows as a PNG. Encoded in memory and written with one call whose
+/// error is returned: `image::save_buffer` writes through a `BufWriter` whose final
+/// flush fails silently on drop (a full disk gave a truncated file and "wrote").
+pub fn write_png_rgb8(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<(), ImageError> {
+    use image::ImageEncoder;
+    let mut bytes = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut bytes)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|error| ImageError::Png { path: path.into(), error })?;
+    std::fs::write(path, bytes).map_err(|error| ImageError::Io { path: path.into(), error })
+}
+
 /// Linear → sRGB transfer, with clamping to [0, 1] (NaN → 0).
 #[inline]
 pub fn srgb_encode(c: f32) -> f32 {
@@ -177,6 +188,22 @@ mod tests {
         for (a, b) in img.pixels.iter().zip(&back.pixels) {
             let a = a.min(Vec3::ONE);
             assert!((a - *b).abs().max_element() < 0.01, "{a} vs {b}");
+        }
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_png_that_cannot_be_written_is_an_error() {
+        // /dev/full accepts the open and fails every write (ENOSPC): the error must
+        // reach the caller, not be dropped with a buffered writer.
+        let full = Path::new("/dev/full");
+        let dir = std::env::temp_dir().join(format!("fabric-image-full-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let link = dir.join("x.png");
+        let _ = std::fs::remove_file(&link);
+        if full.exists() && std::os::unix::fs::symlink(full, &link).is_ok() {
+            let err = Image::new(4, 4).write(&link, 1.0).unwrap_err();
+            assert!(matches!(err, ImageError::Io { .. }), "{err}");
         }
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -669,3 +669,10 @@ fn synthetic_benchmark_models_are_valid_and_round_trip() {
     assert!(f3.nodes.iter().all(|n| n.alpha() > 0.0 && n.alpha() <= 1.0));
     assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap(), m);
 }
+
+#[test]
+fn a_directory_is_named_as_not_a_model_file() {
+    let dir = std::env::temp_dir();
+    let e = fabric_runtime::hybrid::format::read_file(&dir).unwrap_err().to_string();
+    assert!(e.contains("is a directory") && e.contains(".hyb"), "{e}");
+}

@@ -306,3 +306,28 @@ mod tests {
         }
     }
 }
+
+/// Most worker threads a command starts (`--threads`): far more than any machine's cores,
+/// and a typo such as 4294967295 an error instead of a runaway spawn.
+pub const MAX_THREADS: usize = 1024;
+/// Most samples per pixel or texel any command takes (the bake's `--spp` bound): beyond
+/// it a render runs for days, not a useful refinement.
+pub const MAX_SPP: u32 = 65536;
+/// Most frames `--repeat` renders.
+pub const MAX_REPEAT: u32 = 10_000;
+
+/// Checks, before any work, that `path` can be written as a file: not a directory, its
+/// folder creatable and writable (a probe file is made and removed there). `flag` names
+/// the option in the error.
+pub fn check_writable_file(path: &std::path::Path, flag: &str) -> anyhow::Result<()> {
+    use anyhow::Context;
+    if path.is_dir() {
+        anyhow::bail!("{flag} {}: is a directory; give a file name", path.display());
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| format!("{flag} {}: cannot create its folder {}", path.display(), dir.display()))?;
+    let probe = dir.join(format!(".fabric-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").with_context(|| format!("{flag} {}: cannot write in {}", path.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}

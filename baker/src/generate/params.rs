@@ -201,10 +201,6 @@ fn in_range(key: &str, v: f32, lo: f32, hi: f32) -> Result<(), GenerateError> {
     if v >= lo && v <= hi { Ok(()) } else { Err(bad(key, v, &format!("must be in [{lo}, {hi}]"))) }
 }
 
-fn finite(key: &str, v: f32) -> Result<(), GenerateError> {
-    if v.is_finite() { Ok(()) } else { Err(bad(key, v, "must be finite")) }
-}
-
 fn colors(key: &str, cs: &[[f32; 3]]) -> Result<(), GenerateError> {
     if cs.is_empty() || cs.len() > 16 {
         return Err(bad(key, format!("{} colours", cs.len()), "needs 1 to 16 colours"));
@@ -229,7 +225,10 @@ impl GeneratorParams {
         }
         non_negative("headroom", self.headroom)?;
         non_negative("footroom", self.footroom)?;
-        positive("fiber.diameter", self.fiber.diameter)?;
+        // Bounds far outside real cloth (fibres 5–50 µm, yarns 0.1–2 mm apart) that keep
+        // the generator's fibre, hair and step counts finite: 1e30 asked for more hairs
+        // than memory holds, 1e-9 spacings for 27 GB.
+        in_range("fiber.diameter", self.fiber.diameter, 1e-4, 1.0)?;
         in_range("fiber.albedo_variation", self.fiber.albedo_variation, 0.0, 1.0)?;
         if !(self.material.roughness > 0.0 && self.material.roughness <= 1.0) {
             return Err(bad("material.roughness", self.material.roughness, "must be in (0, 1]"));
@@ -266,8 +265,8 @@ impl WovenParams {
                 }
             }
         }
-        positive("fabric.warp_spacing", self.warp_spacing)?;
-        positive("fabric.weft_spacing", self.weft_spacing)?;
+        in_range("fabric.warp_spacing", self.warp_spacing, 1e-3, 100.0)?;
+        in_range("fabric.weft_spacing", self.weft_spacing, 1e-3, 100.0)?;
         in_range("fabric.cover", self.cover, 0.3, 1.5)?;
         in_range("fabric.flattening", self.flattening, 0.1, 1.0)?;
         in_range("fabric.crimp", self.crimp, 0.0, 2.0)?;
@@ -284,8 +283,8 @@ impl YarnParams {
         if !(1..=8).contains(&self.plies) {
             return Err(bad(&k("plies"), self.plies, "must be in 1..=8"));
         }
-        finite(&k("ply_twist"), self.ply_twist)?;
-        finite(&k("fiber_twist"), self.fiber_twist)?;
+        in_range(&k("ply_twist"), self.ply_twist, -1000.0, 1000.0)?;
+        in_range(&k("fiber_twist"), self.fiber_twist, -1000.0, 1000.0)?;
         if let Some(n) = self.fibers_per_ply
             && !(1..=10_000).contains(&n)
         {
@@ -299,12 +298,14 @@ impl YarnParams {
         in_range(&k("density_beta"), self.density_beta, 0.0, 20.0)?;
         in_range(&k("migration_rmin"), self.migration_rmin, 0.0, 1.0)?;
         in_range(&k("migration_rmax"), self.migration_rmax, self.migration_rmin, 2.0)?;
-        non_negative(&k("migration_period"), self.migration_period)?;
+        if self.migration_period != 0.0 {
+            in_range(&k("migration_period"), self.migration_period, 1e-3, 1000.0)?;
+        }
         let f = &self.flyaways;
-        non_negative(&k("flyaways.hair_density"), f.hair_density)?;
+        in_range(&k("flyaways.hair_density"), f.hair_density, 0.0, 1e4)?;
         in_range(&k("flyaways.hair_rmin"), f.hair_rmin, 0.0, 1.5)?;
         in_range(&k("flyaways.hair_rspan"), f.hair_rspan, 0.0, 20.0)?;
-        non_negative(&k("flyaways.hair_zspan"), f.hair_zspan)?;
+        in_range(&k("flyaways.hair_zspan"), f.hair_zspan, 0.0, 100.0)?;
         in_range(&k("flyaways.hair_theta_span"), f.hair_theta_span, 0.0, std::f32::consts::TAU)?;
         in_range(&k("flyaways.loop_probability"), f.loop_probability, 0.0, 1.0)?;
         in_range(&k("flyaways.loop_rmax"), f.loop_rmax, 0.0, 20.0)?;
@@ -317,17 +318,17 @@ impl YarnParams {
 
 impl FeltParams {
     fn validate(&self) -> Result<(), GenerateError> {
-        positive("fabric.thickness", self.thickness)?;
+        in_range("fabric.thickness", self.thickness, 1e-3, 100.0)?;
         in_range("fabric.packing", self.packing, 0.01, 0.8)?;
-        positive("fabric.fiber_length", self.fiber_length)?;
+        in_range("fabric.fiber_length", self.fiber_length, 1e-3, 1000.0)?;
         in_range("fabric.curl", self.curl, 0.0, 50.0)?;
         in_range("fabric.tilt", self.tilt, 0.0, 1.5)?;
         colors("fabric.colors", &self.colors)?;
-        non_negative("fabric.hair_density", self.hair_density)?;
-        non_negative("fabric.hair_length", self.hair_length)?;
+        in_range("fabric.hair_density", self.hair_density, 0.0, 1e5)?;
+        in_range("fabric.hair_length", self.hair_length, 0.0, 100.0)?;
         in_range("fabric.hair_elevation", self.hair_elevation, 0.0, 1.5707964)?;
-        non_negative("fabric.loop_density", self.loop_density)?;
-        non_negative("fabric.loop_height", self.loop_height)?;
+        in_range("fabric.loop_density", self.loop_density, 0.0, 1e5)?;
+        in_range("fabric.loop_height", self.loop_height, 0.0, 100.0)?;
         non_negative("fabric.loop_span", self.loop_span)
     }
 }

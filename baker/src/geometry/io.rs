@@ -40,8 +40,6 @@ pub enum GeometryIoError {
     Exr { path: PathBuf, error: exr::error::Error },
     #[error(transparent)]
     Image(#[from] ImageError),
-    #[error("{path}: PNG: {error}")]
-    Png { path: PathBuf, error: image::ImageError },
     #[error("{path}: JSON: {error}")]
     Json { path: PathBuf, error: serde_json::Error },
     #[error("{path}: {reason}")]

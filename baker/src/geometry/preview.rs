@@ -53,7 +53,7 @@ fn to_rgb8(v: Vec3) -> Rgb<u8> {
 }
 
 fn save(img: &RgbImage, path: &Path) -> Result<PathBuf, GeometryIoError> {
-    img.save(path).map_err(|error| GeometryIoError::Png { path: path.into(), error })?;
+    fabric_runtime::image::write_png_rgb8(path, img.as_raw(), img.width(), img.height())?;
     Ok(path.into())
 }
 

@@ -189,6 +189,9 @@ pub struct BakeArgs {
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
 
+/// Most held-out views `--held-out` renders (each a reference at --held-out-spp).
+const MAX_HELD_OUT: usize = 256;
+
 pub fn run(args: BakeArgs) -> Result<()> {
     let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: args.shadows, pair_weights: !args.unweighted_pairs, volumetric: args.volumetric, ..Default::default() };
     options.pairs.count = args.pairs;
@@ -265,6 +268,25 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.held_out_spp < 2 {
         bail!("--held-out-spp {}: need at least 2 (two halves)", args.held_out_spp);
     }
+    for (flag, spp) in [("--held-out-spp", Some(args.held_out_spp)), ("--flyaway-spp", Some(args.flyaway_spp)), ("--bsdf-spp", args.bsdf_spp)] {
+        if spp.is_some_and(|s| s > crate::args::MAX_SPP) {
+            bail!("{flag} {}: must be at most {}", spp.unwrap_or(0), crate::args::MAX_SPP);
+        }
+    }
+    if args.held_out > MAX_HELD_OUT {
+        bail!("--held-out {}: must be at most {MAX_HELD_OUT} views", args.held_out);
+    }
+    if args.prefilter.levels.is_some_and(|l| l == 0) {
+        bail!("--levels 0: a model has at least level 0");
+    }
+    // Where the results go, checked before the work that would write them.
+    crate::args::check_writable_file(&args.out, "--out")?;
+    if let Some(report) = &args.report {
+        crate::args::check_writable_file(report, "--report")?;
+    }
+    if let Some(p) = args.pictures.as_ref().filter(|p| p.exists() && !p.is_dir()) {
+        bail!("--pictures {}: is a file; give a folder for the held-out views' pictures", p.display());
+    }
     if !(args.held_out_turn.is_finite() && (0.0..=45.0).contains(&args.held_out_turn)) {
         bail!("--held-out-turn {}: a turn of the light in degrees, 0 to 45 (0 skips the yardstick)", args.held_out_turn);
     }
@@ -273,6 +295,12 @@ pub fn run(args: BakeArgs) -> Result<()> {
     let start = Instant::now();
     let volume = load_fabric(&args.dir, &overrides).with_context(|| format!("cannot load the fabric volume {}", args.dir.display()))?;
     let [nx, ny, nz] = volume.dims();
+    if let Some(levels) = args.prefilter.levels {
+        let most = fabric_runtime::hybrid::max_levels(nx as u32, ny as u32);
+        if levels > most {
+            bail!("--levels {levels}: a {nx}x{ny} volume's model has 1..={most} levels");
+        }
+    }
     println!("volume {}: {nx}x{ny}x{nz} voxels (loaded in {:.2} s)", args.dir.display(), start.elapsed().as_secs_f64());
 
     let progress = Bars::default();

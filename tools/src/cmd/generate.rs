@@ -106,6 +106,10 @@ pub fn run(args: GenArgs) -> Result<()> {
     if let Some(d) = overrides.density_scale {
         vol.material.density_scale = d;
     }
+    let (lo, hi) = (fabric_baker::volume::material::DENSITY_SCALE_MIN, fabric_baker::volume::material::DENSITY_SCALE_MAX);
+    if !(lo..=hi).contains(&vol.material.density_scale) {
+        anyhow::bail!("the generated density scale {} per mm (material.fiber_optical_depth / fiber.diameter) is outside [{lo}, {hi}]", vol.material.density_scale);
+    }
     let stats = generated.stats;
     let generate_seconds = start.elapsed().as_secs_f64();
 

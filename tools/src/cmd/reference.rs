@@ -99,8 +99,11 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         bail!("--exposure must be a positive finite number, got {}", args.output.exposure);
     }
     let threads = args.threads.unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
-    if threads == 0 {
-        bail!("--threads must be at least 1");
+    if !(1..=crate::args::MAX_THREADS).contains(&threads) {
+        bail!("--threads {threads}: must be in 1..={}", crate::args::MAX_THREADS);
+    }
+    if !(1..=crate::args::MAX_SPP).contains(&args.spp) {
+        bail!("--spp {}: must be in 1..={}", args.spp, crate::args::MAX_SPP);
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
     pool.install(|| run_in_pool(&args, threads))

@@ -50,6 +50,9 @@ pub struct RenderArgs {
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.output.validate()?;
+    if args.repeat > crate::args::MAX_REPEAT {
+        anyhow::bail!("--repeat {}: must be at most {}", args.repeat, crate::args::MAX_REPEAT);
+    }
     if let Some(model) = &args.model {
         if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
             anyhow::bail!("--mesh draws the fabric on a mesh, which only the GPU renderer does; the CPU renderer draws the tile on its plane");

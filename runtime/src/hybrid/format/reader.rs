@@ -364,7 +364,12 @@ pub fn inspect_file(path: &Path) -> Result<FileInfo, FileError> {
 fn with_mapped_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T, FormatError>) -> Result<T, FileError> {
     let fail = |error: FormatError| FileError { path: path.to_path_buf(), error };
     let file = std::fs::File::open(path).map_err(|e| fail(e.into()))?;
-    let len = file.metadata().map_err(|e| fail(e.into()))?.len();
+    let meta = file.metadata().map_err(|e| fail(e.into()))?;
+    // A directory opens but cannot be mapped ("No such device"): say what is expected.
+    if meta.is_dir() {
+        return Err(fail(std::io::Error::new(std::io::ErrorKind::InvalidInput, "is a directory, not a hybrid model file (.hyb)").into()));
+    }
+    let len = meta.len();
     if len < HEADER_SIZE as u64 {
         return Err(fail(FormatError::TooShort { len, need: HEADER_SIZE as u64 }));
     }
