@@ -201,24 +201,32 @@ pub fn node_responses(model: &HybridModel) {
     }
 }
 
-/// The sweep's three nearest steps with the chain at 1, 2 and 4² samples per pixel:
-/// whether what is left there is aliasing (falls with samples) or bias (does not).
-fn sweep_supersampled(model: &HybridModel) {
+/// The sweep's camera at `texels` level-0 texels per pixel (as `far_view::sweep_step`)
+/// and its truth: level 0 at 16 × 16 samples per pixel of an image enlarged to at least
+/// 4 × 4 samples per texel, box-downsampled.
+fn sweep_truth(model: &HybridModel, texels: f32) -> (fabric_runtime::scene::Camera, Image) {
     use fabric_runtime::scene::{Camera, Projection, direction_from_angles};
     use glam::Vec3;
     let b = model.bounds();
     let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
     let (fov, pixels) = (40f32, 32u32);
     let pixel_at = 2.0 * (0.5 * fov).to_radians().tan() / pixels as f32;
+    let d = texels * model.texel_size().x / pixel_at;
+    let dir = direction_from_angles(45.0, fabric_baker::prefilter::far_view::VIEW_AZIMUTH);
+    let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
+    let f = ((1.6 * texels * std::f32::consts::SQRT_2 * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
+    let big = Camera { width: pixels * f, height: pixels * f, ..camera };
+    let opt = CpuRenderOptions { level: LevelChoice::Fixed(0), periodic: true, supersampling: 16, ..Default::default() };
+    (camera, render(model, &big, &[far_light()], &opt).unwrap().box_downsample(f))
+}
+
+/// The sweep's three nearest steps with the chain at 1, 2 and 4² samples per pixel:
+/// whether what is left there is aliasing (falls with samples) or bias (does not).
+fn sweep_supersampled(model: &HybridModel) {
     let light = [far_light()];
     for texels in [0.5f32, 0.91, 1.64] {
-        let d = texels * model.texel_size().x / pixel_at;
-        let dir = direction_from_angles(45.0, fabric_baker::prefilter::far_view::VIEW_AZIMUTH);
-        let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
-        let f = ((1.6 * texels * std::f32::consts::SQRT_2 * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
-        let big = Camera { width: pixels * f, height: pixels * f, ..camera };
+        let (camera, truth) = sweep_truth(model, texels);
         let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, ..Default::default() };
-        let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let mut line = format!("{texels:.2} texels/px:");
         for ss in [1u32, 2, 4] {
             let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, ss)).unwrap();
@@ -604,21 +612,10 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
 /// samples per pixel against the truth, with their means over the truth's: whether a
 /// step's error is a level's bias or its filtering.
 fn sweep_levels(model: &HybridModel, list: &str) {
-    use fabric_runtime::scene::{Camera, Projection, direction_from_angles};
-    use glam::Vec3;
-    let b = model.bounds();
-    let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
-    let (fov, pixels) = (40f32, 32u32);
-    let pixel_at = 2.0 * (0.5 * fov).to_radians().tan() / pixels as f32;
     let light = [far_light()];
     for texels in list.split(',').map(|t| t.trim().parse::<f32>().unwrap()) {
-        let d = texels * model.texel_size().x / pixel_at;
-        let dir = direction_from_angles(45.0, fabric_baker::prefilter::far_view::VIEW_AZIMUTH);
-        let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
-        let f = ((1.6 * texels * std::f32::consts::SQRT_2 * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
-        let big = Camera { width: pixels * f, height: pixels * f, ..camera };
+        let (camera, truth) = sweep_truth(model, texels);
         let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, ..Default::default() };
-        let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
         let k = (mean(&truth) / mean(&chain)) as f32;
         let scaled = Image::from_fn(chain.width, chain.height, |x, y| k * chain.get(x, y));

@@ -103,7 +103,7 @@ pub fn run(args: ReferenceArgs) -> Result<()> {
         bail!("--threads {threads}: must be in 1..={}", crate::args::MAX_THREADS);
     }
     if !(1..=crate::args::MAX_SPP).contains(&args.spp) {
-        bail!("--spp {}: must be in 1..={}", args.spp, crate::args::MAX_SPP);
+        bail!("--spp {}: samples per pixel must be in 1..={}", args.spp, crate::args::MAX_SPP);
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
     pool.install(|| run_in_pool(&args, threads))
