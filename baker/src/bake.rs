@@ -326,12 +326,16 @@ impl BakeOptions {
         if self.fit.lobes == 0 || self.fit.lobes > 4 {
             return bad("lobes", self.fit.lobes.to_string(), "1..=4 lobes at level 0");
         }
-        if !(self.fit.eta >= 1.0 && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
-            return bad("eta", self.fit.eta.to_string(), "must be in [1, 4]");
+        // η = 1 makes the Fresnel factor, and with it every lobe, zero: nothing to fit.
+        if !(self.fit.eta >= ETA_MIN_FIT && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
+            return bad("eta", self.fit.eta.to_string(), "must be in [1.01, 4] (at η = 1 the Fresnel factor, and every lobe with it, is zero)");
         }
         Ok(())
     }
 }
+
+/// The smallest Fresnel index `fabric bake --eta` takes.
+pub const ETA_MIN_FIT: f32 = 1.01;
 
 /// Scales every normal's slope by `c` (n ∝ (c·n_x/n_z, c·n_y/n_z, 1)) and makes the
 /// tangents perpendicular to the new normals again.
@@ -408,6 +412,11 @@ fn offset_frames(base: &[ClothFrame], clusters: &[u32], offsets: &[Vec<FrameOffs
 /// Bakes `volume` into a hybrid model (level 0).
 pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progress) -> Result<Bake, BakeError> {
     options.validate()?;
+    // The volume's box must make a valid tile; say so before the hours of work, not after.
+    {
+        let [nx, ny, nz] = volume.dims();
+        Tile::from_source(volume.bbox(), [nx as u32, ny as u32, nz as u32]).validate()?;
+    }
     let start = Instant::now();
     let mut stage_seconds: Vec<(String, f64)> = Vec::new();
     let mut stage_peak_rss_bytes: Vec<(String, u64)> = Vec::new();

@@ -154,6 +154,12 @@ fn reads_a_volume_laid_out_as_mitsuba_writes_it() {
 
     let vol = load_fabric(&d, &MaterialOverrides::default()).unwrap();
     assert_eq!(vol.material, MaterialParams::default()); // no material.toml
+    // ... which the tools say: the defaults taken, unless the flags gave both values.
+    let note = material_defaults_note(&d, &MaterialOverrides::default()).expect("a note for the missing file");
+    assert!(note.contains("material.toml") && note.contains("density_scale = 1") && note.contains("roughness = 0.1"), "{note}");
+    let note = material_defaults_note(&d, &MaterialOverrides { density_scale: Some(40.0), roughness: None }).unwrap();
+    assert!(!note.contains("density_scale") && note.contains("roughness"), "{note}");
+    assert_eq!(material_defaults_note(&d, &MaterialOverrides { density_scale: Some(40.0), roughness: Some(0.2) }), None);
     assert_eq!(vol.dims(), [3, 2, 2]);
     // Cell-centred (Mitsuba 3): cell (0,0,0) spans [0, 1/3]×[0, 1]×[0, 0.25].
     assert!(vol.cell_center(0, 0, 0).abs_diff_eq(Vec3::new(1.0 / 6.0, 0.5, 0.125), 1e-6));
@@ -176,6 +182,7 @@ fn reads_a_volume_laid_out_as_mitsuba_writes_it() {
     std::fs::write(d.join("material.toml"), "density_scale = 150.0\nroughness = 0.3\n").unwrap();
     let m = load_fabric(&d, &MaterialOverrides::default()).unwrap().material;
     assert_eq!((m.density_scale, m.roughness), (150.0, 0.3));
+    assert_eq!(material_defaults_note(&d, &MaterialOverrides::default()), None);
     let m = load_fabric(&d, &MaterialOverrides { density_scale: Some(40.0), roughness: None }).unwrap().material;
     assert_eq!((m.density_scale, m.roughness), (40.0, 0.3));
 

@@ -513,6 +513,8 @@ fn semantic_corruption_catalogue() {
         ("MODEL reading 7", |p| p.find(SectionKind::Model, 0)[12..16].copy_from_slice(&7u32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
         ("MODEL truncated", |p| p.find(SectionKind::Model, 0).truncate(20), |e| matches!(e, FormatError::Section { kind, .. } if kind == "MODEL")),
         ("tile size NaN", |p| p.find(SectionKind::Model, 0)[32..36].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "size.x", .. }))),
+        ("tile size 1e-30 (renders black)", |p| p.find(SectionKind::Model, 0)[32..36].copy_from_slice(&1e-30f32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "size.x", .. }))),
+        ("tile 1e9 from the origin (f32 loses the texel)", |p| p.find(SectionKind::Model, 0)[24..28].copy_from_slice(&1e9f32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "origin.x", .. }))),
         ("height scale −1", |p| p.find(SectionKind::Model, 0)[44..48].copy_from_slice(&(-1f32).to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::Tile { field: "height_scale", .. }))),
         ("HEIGHT short", |p| p.find(SectionKind::Height, 0).truncate(100), |e| matches!(e, FormatError::Invalid(ModelError::HeightLength { .. }))),
         ("HEIGHT odd length", |p| p.find(SectionKind::Height, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "HEIGHT")),

@@ -49,6 +49,7 @@ fn bad_flags_are_rejected_with_a_message() {
         (&["render", "--light-dir", "0,0,0", "--out", "x.png"][..], "light"),
         (&["render", "--device", "no-such-gpu", "--out", "x.png"][..], "no vulkan device matches 'no-such-gpu'"),
         (&["render", "--exposure", "-1", "--out", "x.png"][..], "exposure"),
+        (&["render", "--repeat", "0", "--out", "x.png"][..], "--repeat 0"),
     ] {
         let o = fabric().args(args).current_dir(env!("CARGO_TARGET_TMPDIR")).output().unwrap();
         let stderr = String::from_utf8_lossy(&o.stderr);
@@ -210,7 +211,7 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
         (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
@@ -218,6 +219,7 @@ fn bake_refuses_bad_input_with_a_clear_error() {
         (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "90"], "--held-out-turn"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "nan"], "--held-out-turn"),
+        (&["bake", "/nonexistent/fabric", "--eta", "1"], "Fresnel"),
     ];
     for (args, says) in cases {
         let o = fabric().args(args).arg("--out").arg(&out).output().unwrap();

@@ -335,7 +335,10 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     let target2: f64 = samples.iter().map(|s| s.radiance().as_dvec3().length_squared()).sum();
     let n = o.lobes.clamp(1, 4);
     let o = &ClusterFitOptions { lobes: n, ..o.clone() };
-    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[]), residual2: target2, target2, evals: 0, samples: samples.len(), problem: Some(problem) };
+    // A failed fit is black, reported as a problem, and still a valid BRDF (the file
+    // needs at least one lobe per texel): one lobe of zero weight.
+    let black_lobe = ClothLobe { k: Vec3::ZERO, beta: 1.0, gamma: 0.0 };
+    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[black_lobe]), residual2: target2, target2, evals: 0, samples: samples.len(), problem: Some(problem) };
     if samples.is_empty() {
         return fallback("no samples: the model shows none of this cluster's texels along any training ray".into());
     }
@@ -628,6 +631,9 @@ mod tests {
     fn degenerate_inputs_end_with_a_clear_result() {
         let fit = fit_cluster::<Target>(&[], &ClusterFitOptions::default());
         assert!(fit.problem.as_deref().unwrap().contains("no samples"));
+        // A failed fit is still a BRDF the file accepts: at least one lobe, in bounds.
+        assert_eq!(fit.params.lobes().len(), 1);
+        assert!(fit.params.lobes().iter().all(|l| l.k == Vec3::ZERO && (fabric_runtime::brdf::BETA_MIN..=fabric_runtime::brdf::BETA_MAX).contains(&l.beta)));
         // All-black samples: zero parameters, zero residual, no problem.
         let black: Vec<Target> = synthetic(&truth(), BrdfReading::Bounded, 0.0, 50).into_iter().map(|t| Target { radiance: Vec3::ZERO, ..t }).collect();
         let fit = fit_cluster(&black, &ClusterFitOptions::default());

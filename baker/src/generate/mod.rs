@@ -138,7 +138,7 @@ pub fn generate_with_progress(params: &GeneratorParams, dims: [usize; 3], seed: 
     let t1 = Instant::now();
     let bbox = Aabb::new(Vec3::ZERO, Vec3::from(extent));
     let material = MaterialParams { density_scale: params.material.fiber_optical_depth / params.fiber.diameter, roughness: params.material.roughness };
-    let mut volume = FabricVolume::new(dims, bbox, material);
+    let mut volume = FabricVolume::try_new(dims, bbox, material).map_err(GenerateError::Layout)?;
     voxelize::voxelize(&mut volume, &segments, &styles, progress);
     let stats = GenerationStats {
         voxel_size: h,

@@ -36,6 +36,24 @@ pub fn load_fabric(dir: &Path, overrides: &MaterialOverrides) -> Result<FabricVo
     load_fabric_with_progress(dir, overrides, &ProgressBar::hidden())
 }
 
+/// What a loader assumed for want of `material.toml`: `None` when the file exists or the
+/// flags gave every value, else a line naming the defaults taken. A measured volume comes
+/// without the file, and a silent density scale changes every image, so the tools print it.
+pub fn material_defaults_note(dir: &Path, overrides: &MaterialOverrides) -> Option<String> {
+    if dir.join(MATERIAL_FILE).exists() {
+        return None;
+    }
+    let d = super::MaterialParams::default();
+    let mut taken = Vec::new();
+    if overrides.density_scale.is_none() {
+        taken.push(format!("density_scale = {} per world unit (--density-scale)", d.density_scale));
+    }
+    if overrides.roughness.is_none() {
+        taken.push(format!("roughness = {} (--roughness)", d.roughness));
+    }
+    (!taken.is_empty()).then(|| format!("note: {} has no {MATERIAL_FILE}; using the defaults {}", dir.display(), taken.join(" and ")))
+}
+
 /// [`load_fabric`] reporting slabs read on `progress` (its length is set here).
 pub fn load_fabric_with_progress(dir: &Path, overrides: &MaterialOverrides, progress: &ProgressBar) -> Result<FabricVolume, VolumeError> {
     let meta = std::fs::metadata(dir).map_err(|e| VolumeError::io(dir, e))?;
@@ -65,7 +83,7 @@ pub fn load_fabric_with_progress(dir: &Path, overrides: &MaterialOverrides, prog
     let [nx, ny, nz] = h0.dims;
     let slab = nx * ny;
     let slabs_per_chunk = (CHUNK_VOXELS / slab).max(1);
-    let mut voxels = vec![Voxel::EMPTY; slab * nz];
+    let mut voxels = super::grid::try_voxels(h0.dims).map_err(|why| VolumeError::BadDimensions { path: paths[0].clone(), dims: h0.dims.map(|d| d as i64), why })?;
     let mut issues = Issues::default();
     let (mut raw, mut rho, mut alb, mut ori) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     progress.set_length(nz as u64);

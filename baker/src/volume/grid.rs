@@ -117,6 +117,15 @@ impl Default for MaterialParams {
     }
 }
 
+/// Empty voxels for `dims`, or a message saying how much memory the system refused.
+pub fn try_voxels(dims: [usize; 3]) -> Result<Vec<Voxel>, String> {
+    let n = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).ok_or_else(|| format!("{dims:?} voxels overflow the address space"))?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| format!("cannot allocate {:.1} GiB for {}x{}x{} voxels ({} bytes each): not enough memory", n as f64 * core::mem::size_of::<Voxel>() as f64 / (1u64 << 30) as f64, dims[0], dims[1], dims[2], core::mem::size_of::<Voxel>()))?;
+    v.resize(n, Voxel::EMPTY);
+    Ok(v)
+}
+
 /// A fabric volume: `dims` = (xres, yres, zres) cells spanning `bbox`, cell-centred.
 /// Z+ is up; z = zres is the front surface. The sample tiles periodically in x and y.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,6 +142,12 @@ impl FabricVolume {
     pub fn new(dims: [usize; 3], bbox: Aabb, material: MaterialParams) -> FabricVolume {
         let n = dims[0] * dims[1] * dims[2];
         FabricVolume { dims, bbox, voxels: vec![Voxel::EMPTY; n], material }
+    }
+
+    /// [`FabricVolume::new`], reporting an allocation the system refuses (a 1024³ volume
+    /// is 12 GiB of voxels) instead of aborting the process.
+    pub fn try_new(dims: [usize; 3], bbox: Aabb, material: MaterialParams) -> Result<FabricVolume, String> {
+        Ok(FabricVolume { dims, bbox, voxels: try_voxels(dims)?, material })
     }
 
     /// Wraps packed voxels (length must be the product of `dims`).
@@ -212,6 +227,16 @@ impl FabricVolume {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn refused_allocations_are_errors_not_aborts() {
+        assert_eq!(try_voxels([2, 3, 4]).unwrap().len(), 24);
+        let e = try_voxels([usize::MAX, 2, 1]).unwrap_err();
+        assert!(e.contains("overflow"), "{e}");
+        // 2^60 voxels: more bytes than any address space holds.
+        let e = try_voxels([1 << 20, 1 << 20, 1 << 20]).unwrap_err();
+        assert!(e.contains("cannot allocate") && e.contains("1048576x1048576x1048576"), "{e}");
+    }
 
     #[test]
     fn packing_errors_are_as_documented() {

@@ -29,12 +29,17 @@ pub struct EditMask {
 }
 
 impl EditMask {
-    /// A mask from values (clamped to [0, 1]; NaN → 0). Errors on a size mismatch.
+    /// A mask from values (finite ones clamped to [0, 1], as an HDR image's may exceed
+    /// 1). Errors on a size mismatch and on a NaN or infinite value, naming its pixel:
+    /// a corrupt mask would otherwise edit the wrong texels without a word.
     pub fn new(width: u32, height: u32, values: Vec<f32>) -> Result<EditMask, String> {
         if width == 0 || height == 0 || values.len() as u64 != width as u64 * height as u64 {
             return Err(format!("edit mask of {width}x{height} needs {} values, has {}", width as u64 * height as u64, values.len()));
         }
-        Ok(EditMask { width, height, values: values.into_iter().map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) }).collect() })
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(format!("edit mask pixel ({}, {}) is {}: mask values must be finite (0 = unedited, 1 = edited)", k % width as usize, k / width as usize, values[k]));
+        }
+        Ok(EditMask { width, height, values: values.into_iter().map(|v| v.clamp(0.0, 1.0)).collect() })
     }
 
     /// The value at tile fraction u ∈ [0, 1)² (wrapped), nearest pixel.
@@ -119,5 +124,21 @@ impl Edit {
             }
         }
         b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn masks_clamp_finite_values_and_refuse_the_rest() {
+        let m = EditMask::new(2, 1, vec![-0.5, 7.0]).unwrap();
+        assert_eq!(m.values, [0.0, 1.0]);
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            let e = EditMask::new(2, 2, vec![0.0, 1.0, 0.5, bad]).unwrap_err();
+            assert!(e.contains("pixel (1, 1)") && e.contains("finite"), "{e}");
+        }
+        assert!(EditMask::new(2, 2, vec![0.0; 3]).unwrap_err().contains("needs 4 values"));
     }
 }

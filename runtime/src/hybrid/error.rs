@@ -24,7 +24,7 @@ impl std::fmt::Display for TableKind {
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
-    #[error("tile {field} = {value} is invalid ({why})")]
+    #[error("tile {field} = {value:?} is invalid ({why})")]
     Tile { field: &'static str, value: f32, why: &'static str },
     #[error("{what} is {width}x{height}; each side must be in 1..={max}")]
     Dims { what: &'static str, width: u32, height: u32, max: u32 },

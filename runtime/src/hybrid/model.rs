@@ -52,15 +52,25 @@ impl Tile {
         Tile { origin: bbox.min.truncate(), size: size.truncate(), top_z: bbox.max.z, height_scale: size.z, voxel_depth: size.z / dims[2].max(1) as f32 }
     }
 
-    fn validate(&self) -> Result<(), ModelError> {
+    /// Checks the tile's numbers against the bounds below (the file's reader does too).
+    pub fn validate(&self) -> Result<(), ModelError> {
+        // Lengths within [MIN_LENGTH, MAX_LENGTH] and positions within MAX_OFFSET tile
+        // sizes of the world origin: beyond them f32 world → tile arithmetic loses the
+        // texel (a tile 1e-30 wide rendered black; one 1e5 widths off-origin has an ulp
+        // near a texel).
+        let len = |v: f32| v.is_finite() && (MIN_LENGTH..=MAX_LENGTH).contains(&v);
+        let scale = self.size.x.max(self.size.y).max(self.height_scale);
+        let pos = |v: f32| v.is_finite() && v.abs() <= MAX_OFFSET * scale;
+        const LEN: &str = "must be finite and in [1e-6, 1e6] world units";
+        const POS: &str = "must be finite and within 1e4 tile sizes of the world origin";
         let checks = [
-            ("origin.x", self.origin.x, self.origin.x.is_finite(), "not finite"),
-            ("origin.y", self.origin.y, self.origin.y.is_finite(), "not finite"),
-            ("size.x", self.size.x, self.size.x.is_finite() && self.size.x > 0.0, "must be positive and finite"),
-            ("size.y", self.size.y, self.size.y.is_finite() && self.size.y > 0.0, "must be positive and finite"),
-            ("top_z", self.top_z, self.top_z.is_finite(), "not finite"),
-            ("height_scale", self.height_scale, self.height_scale.is_finite() && self.height_scale > 0.0, "must be positive and finite"),
-            ("voxel_depth", self.voxel_depth, self.voxel_depth.is_finite() && self.voxel_depth > 0.0, "must be positive and finite"),
+            ("size.x", self.size.x, len(self.size.x), LEN),
+            ("size.y", self.size.y, len(self.size.y), LEN),
+            ("height_scale", self.height_scale, len(self.height_scale), LEN),
+            ("voxel_depth", self.voxel_depth, len(self.voxel_depth), LEN),
+            ("origin.x", self.origin.x, pos(self.origin.x), POS),
+            ("origin.y", self.origin.y, pos(self.origin.y), POS),
+            ("top_z", self.top_z, pos(self.top_z), POS),
         ];
         for (field, value, ok, why) in checks {
             if !ok {
@@ -70,6 +80,12 @@ impl Tile {
         Ok(())
     }
 }
+
+/// Bounds of a tile's lengths (size, height_scale, voxel_depth), world units.
+pub const MIN_LENGTH: f32 = 1e-6;
+pub const MAX_LENGTH: f32 = 1e6;
+/// How far (in tile sizes) the tile may sit from the world origin.
+pub const MAX_OFFSET: f32 = 1e4;
 
 /// The smooth height field h at level-0 resolution: depth below the top plane.
 #[derive(Clone, Debug, Default, PartialEq)]

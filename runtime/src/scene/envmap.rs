@@ -37,6 +37,10 @@ use crate::image::{Image, ImageError};
 
 /// Largest map side accepted (16k × 8k is already 1.6 GB of f32 RGB).
 pub const ENVMAP_MAX_SIDE: u32 = 16384;
+/// The brightest texel accepted (after `scale`): far above a sun in any map's units (a
+/// unit-irradiance sun in one texel of a 16384-wide map is ~7e6), far below where f32
+/// sums of radiance × BRDF overflow (3.4e38 made pixels infinite).
+pub const ENVMAP_MAX_RADIANCE: f32 = 1e15;
 
 #[derive(Debug, thiserror::Error)]
 pub enum EnvMapError {
@@ -46,6 +50,8 @@ pub enum EnvMapError {
     BadSize { path: PathBuf, width: u32, height: u32 },
     #[error("{path}: texel ({x}, {y}) is {value}; environment radiance must be finite and non-negative")]
     BadTexel { path: PathBuf, x: u32, y: u32, value: Vec3 },
+    #[error("{path}: texel ({x}, {y}) is {value} after --envmap-scale; environment radiance above {ENVMAP_MAX_RADIANCE:e} overflows the shading's f32 sums (scale the map down and raise --exposure)")]
+    TooBright { path: PathBuf, x: u32, y: u32, value: Vec3 },
     #[error("--envmap-scale {0} must be finite and non-negative")]
     BadScale(f32),
     #[error("--envmap-rotate {0} must be finite (degrees)")]
@@ -117,6 +123,9 @@ impl EnvMap {
             return Err(EnvMapError::BadTexel { path: name.into(), x: i as u32 % w, y: i as u32 / w, value: image.pixels[i] });
         }
         let texels: Vec<Vec3> = image.pixels.iter().map(|p| *p * options.scale).collect();
+        if let Some(i) = texels.iter().position(|t| !(t.max_element() <= ENVMAP_MAX_RADIANCE)) {
+            return Err(EnvMapError::TooBright { path: name.into(), x: i as u32 % w, y: i as u32 / w, value: texels[i] });
+        }
         // Texel weights: mean RGB times the texel's solid angle (∝ sin θ at the row centre).
         let (wu, hu) = (w as usize, h as usize);
         let mut conditional = vec![0.0f32; hu * (wu + 1)];
@@ -439,6 +448,12 @@ mod tests {
         assert!(matches!(EnvMap::from_image(&Image::new(4, 2), EnvMapOptions { scale: f32::INFINITY, ..ok }, Path::new("s")), Err(EnvMapError::BadScale(_))));
         assert!(matches!(EnvMap::from_image(&Image::new(4, 2), EnvMapOptions { rotate_deg: f32::NAN, ..ok }, Path::new("s")), Err(EnvMapError::BadRotation(_))));
         assert!(matches!(EnvMap::constant(Vec3::new(0.0, f32::INFINITY, 0.0)), Err(EnvMapError::BadTexel { .. })));
+        // Finite but overflowing once shaded: refused, with the scale taken into account.
+        let max = Image::from_fn(4, 2, |x, y| if x == 3 && y == 0 { Vec3::splat(f32::MAX) } else { Vec3::ONE });
+        let e = EnvMap::from_image(&max, ok, Path::new("m.exr")).unwrap_err();
+        assert!(matches!(e, EnvMapError::TooBright { x: 3, y: 0, .. }), "{e}");
+        assert!(matches!(EnvMap::from_image(&Image::from_fn(4, 2, |_, _| Vec3::splat(1e9)), EnvMapOptions { scale: 1e7, ..ok }, Path::new("s")), Err(EnvMapError::TooBright { .. })));
+        assert!(EnvMap::from_image(&Image::from_fn(4, 2, |_, _| Vec3::splat(1e9)), ok, Path::new("s")).is_ok());
         // A black map is valid and samples nothing.
         let black = EnvMap::from_image(&Image::new(4, 2), ok, Path::new("b")).unwrap();
         assert_eq!(black.sample(0.5, 0.5).pdf, 0.0);

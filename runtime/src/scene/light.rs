@@ -35,8 +35,12 @@ pub enum LightError {
 
 impl Light {
     /// A directional light; `dir_to_light` need not be normalized.
+    /// Scaled by its largest component first, so that 1e30,0,0 (whose squared length
+    /// overflows) and 1e-40,0,0 (whose squared length underflows) are +X, not zero.
     pub fn directional(dir_to_light: Vec3, irradiance: Vec3) -> Light {
-        Light::Directional { dir_to_light: dir_to_light.normalize_or_zero(), irradiance }
+        let m = dir_to_light.abs().max_element();
+        let d = if m > 0.0 && dir_to_light.is_finite() { (dir_to_light / m).normalize_or_zero() } else { dir_to_light };
+        Light::Directional { dir_to_light: d, irradiance }
     }
 
     pub fn validate(&self) -> Result<(), LightError> {
@@ -90,6 +94,15 @@ mod tests {
         let l = Light::directional(Vec3::new(0.0, 0.0, 3.0), Vec3::ONE);
         assert_eq!(l.sample(Vec3::new(5.0, 1.0, 0.0)).wi, Vec3::Z);
         assert!(Light::directional(Vec3::ZERO, Vec3::ONE).validate().is_err());
+        // Lengths that overflow or underflow when squared still give a direction.
+        for (d, want) in [(Vec3::new(1e30, 0.0, 0.0), Vec3::X), (Vec3::new(1e-40, 0.0, 0.0), Vec3::X), (Vec3::new(f32::MAX, f32::MAX, 0.0), Vec3::new(1.0, 1.0, 0.0).normalize())] {
+            let l = Light::directional(d, Vec3::ONE);
+            assert!(l.validate().is_ok(), "{d}");
+            assert!(l.sample(Vec3::ZERO).wi.abs_diff_eq(want, 1e-6), "{d}");
+        }
+        // A bad direction is reported as given.
+        let e = Light::directional(Vec3::new(f32::NAN, 0.0, 1.0), Vec3::ONE).validate().unwrap_err().to_string();
+        assert!(e.contains("NaN"), "{e}");
         assert!(Light::directional(Vec3::Z, Vec3::new(1.0, -1.0, 0.0)).validate().is_err());
     }
 }

@@ -22,6 +22,10 @@ pub struct Vertex {
 
 const _: () = assert!(core::mem::size_of::<Vertex>() == 48);
 
+/// The largest vertex coordinate accepted from a file: beyond it the bounds, the camera
+/// framing and f32 positions lose meaning (a diagonal of 1e20 overflows its square).
+pub const MAX_COORDINATE: f32 = 1e9;
+
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     pub vertices: Vec<Vertex>,
@@ -36,6 +40,12 @@ pub enum MeshError {
     Empty { path: String },
     #[error("{path}: vertex {index} has a non-finite position")]
     NonFinite { path: String, index: usize },
+    #[error("{path}: vertex {index} has a non-finite {what}")]
+    NonFiniteAttribute { path: String, index: usize, what: &'static str },
+    #[error("{path}: vertex {index} lies {distance:e} units from the origin (at most {MAX_COORDINATE:e}: move or scale the mesh)")]
+    TooFar { path: String, index: usize, distance: f32 },
+    #[error("{path}: all {triangles} triangles have zero area (no surface to draw)")]
+    Degenerate { path: String, triangles: usize },
     #[error("unknown mesh '{0}' (use plane, sphere, cylinder or a path to an .obj file)")]
     Unknown(String),
     #[error("mesh parameter {what} = {value} is out of range")]
@@ -102,7 +112,7 @@ impl Mesh {
     /// Loads an OBJ file (triangulated; normals and UVs used when present).
     pub fn load_obj(path: &Path) -> Result<Mesh, MeshError> {
         let p = path.display().to_string();
-        let (models, _) = tobj::load_obj(path, &tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() }).map_err(|source| MeshError::Obj { path: p.clone(), source })?;
+        let (models, _) = tobj::load_obj(path, &tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true, ..Default::default() }).map_err(|source| MeshError::Obj { path: p.clone(), source })?;
         let mut m = Mesh::default();
         for model in models {
             let mesh = model.mesh;
@@ -110,11 +120,24 @@ impl Mesh {
             let n = mesh.positions.len() / 3;
             for i in 0..n {
                 let pos = [mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2]];
+                let index = m.vertices.len();
                 if !pos.iter().all(|c| c.is_finite()) {
-                    return Err(MeshError::NonFinite { path: p, index: m.vertices.len() });
+                    return Err(MeshError::NonFinite { path: p, index });
+                }
+                let distance = Vec3::from(pos).abs().max_element();
+                if distance > MAX_COORDINATE {
+                    return Err(MeshError::TooFar { path: p, index, distance });
                 }
                 let normal = if mesh.normals.len() >= 3 * (i + 1) { [mesh.normals[3 * i], mesh.normals[3 * i + 1], mesh.normals[3 * i + 2]] } else { [0.0; 3] };
                 let uv = if mesh.texcoords.len() >= 2 * (i + 1) { [mesh.texcoords[2 * i], mesh.texcoords[2 * i + 1]] } else { [0.0; 2] };
+                // A NaN UV would tile NaN texel coordinates; a NaN normal is derived again
+                // below like a missing one, but a file that stores it is corrupt.
+                if !uv.iter().all(|c| c.is_finite()) {
+                    return Err(MeshError::NonFiniteAttribute { path: p, index, what: "texture coordinate (vt)" });
+                }
+                if !normal.iter().all(|c| c.is_finite()) {
+                    return Err(MeshError::NonFiniteAttribute { path: p, index, what: "normal (vn)" });
+                }
                 m.vertices.push(Vertex { position: pos, normal, tangent: [0.0; 4], uv });
             }
             for &idx in &mesh.indices {
@@ -126,6 +149,9 @@ impl Mesh {
         }
         if m.indices.len() < 3 {
             return Err(MeshError::Empty { path: p });
+        }
+        if m.triangle_areas().all(|a| !(a > 0.0)) {
+            return Err(MeshError::Degenerate { path: p, triangles: m.indices.len() / 3 });
         }
         m.derive_missing_frames();
         Ok(m)
@@ -180,6 +206,14 @@ impl Mesh {
             p if p.to_ascii_lowercase().ends_with(".obj") => Mesh::load_obj(Path::new(p)),
             other => Err(MeshError::Unknown(other.into())),
         }
+    }
+
+    /// Each triangle's area (0 for a degenerate one).
+    pub fn triangle_areas(&self) -> impl Iterator<Item = f32> + '_ {
+        self.indices.chunks_exact(3).map(|t| {
+            let p = |i: u32| Vec3::from(self.vertices[i as usize].position);
+            0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length()
+        })
     }
 
     /// Axis-aligned bounds of the vertices.
@@ -258,6 +292,24 @@ mod tests {
         std::fs::write(&p, "garbage\n").unwrap();
         assert!(matches!(Mesh::load_obj(&p), Err(MeshError::Empty { .. })));
         assert!(Mesh::load_obj(&dir.join("missing.obj")).is_err());
+        // Corrupt files found by an audit: each gets its own message, none a black image.
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+        std::fs::write(&p, format!("{tri}f 1/1 2/2\nl 1 2\nf 3\n")).unwrap();
+        assert!(matches!(Mesh::load_obj(&p), Err(MeshError::Empty { .. })), "lines and points are not triangles");
+        std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt nan 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n").unwrap();
+        let e = Mesh::load_obj(&p).unwrap_err();
+        assert!(matches!(e, MeshError::NonFiniteAttribute { index: 0, .. }) && e.to_string().contains("texture coordinate"), "{e}");
+        std::fs::write(&p, format!("{tri}vn 0 0 inf\nf 1/1/1 2/2/1 3/3/1\n")).unwrap();
+        assert!(matches!(Mesh::load_obj(&p), Err(MeshError::NonFiniteAttribute { what: "normal (vn)", .. })));
+        std::fs::write(&p, "v 1e30 0 0\nv -1e30 0 0\nv 0 1e30 0\nf 1 2 3\n").unwrap();
+        let e = Mesh::load_obj(&p).unwrap_err();
+        assert!(matches!(e, MeshError::TooFar { index: 0, .. }) && e.to_string().contains("1e30"), "{e}");
+        std::fs::write(&p, "v 0 0 0\nv 0 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\nf 1 3 4\n").unwrap();
+        let e = Mesh::load_obj(&p).unwrap_err();
+        assert!(matches!(e, MeshError::Degenerate { triangles: 2, .. }), "{e}");
+        // One good triangle among degenerate ones is a mesh.
+        std::fs::write(&p, "v 0 0 0\nv 0 0 0\nv 1 1 1\nv 1 0 0\nf 1 2 3\nf 1 3 4\n").unwrap();
+        assert_eq!(Mesh::load_obj(&p).unwrap().triangle_areas().filter(|&a| a > 0.0).count(), 1);
         std::fs::remove_dir_all(&dir).ok();
     }
 }

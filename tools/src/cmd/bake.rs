@@ -88,7 +88,7 @@ pub struct BakeArgs {
     /// Specular lobes per cluster.
     #[arg(long, default_value_t = 2)]
     pub lobes: usize,
-    /// Fixed Fresnel index η.
+    /// Fixed Fresnel index η, in [1.01, 4] (the start of the search with --fit-eta).
     #[arg(long, default_value_t = 1.5)]
     pub eta: f32,
     /// Search η per cluster instead of fixing it.
@@ -294,6 +294,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
 
     let start = Instant::now();
     let volume = load_fabric(&args.dir, &overrides).with_context(|| format!("cannot load the fabric volume {}", args.dir.display()))?;
+    if let Some(note) = fabric_baker::volume::material_defaults_note(&args.dir, &overrides) {
+        eprintln!("{note}");
+    }
     let [nx, ny, nz] = volume.dims();
     if let Some(levels) = args.prefilter.levels {
         let most = fabric_runtime::hybrid::max_levels(nx as u32, ny as u32);

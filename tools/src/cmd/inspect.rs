@@ -67,6 +67,9 @@ fn inspect_fabric(args: &InspectArgs) -> Result<()> {
     let pb = if args.json { ProgressBar::hidden() } else { ProgressBar::new(0) };
     pb.set_style(ProgressStyle::with_template("      load [{bar:40}] {pos}/{len} slabs {elapsed_precise}").unwrap_or_else(|_| ProgressStyle::default_bar()).progress_chars("=> "));
     let vol = volume::load_fabric_with_progress(&args.path, &overrides, &pb)?;
+    if let Some(note) = fabric_baker::volume::material_defaults_note(&args.path, &overrides) {
+        eprintln!("{note}");
+    }
     pb.finish_and_clear();
     // A run longer than one fiber (its diameter plus the partial-volume rim) is surface.
     let min_run = fiber.ceil() as usize + 1;

@@ -114,6 +114,9 @@ fn run_in_pool(args: &ReferenceArgs, threads: usize) -> Result<()> {
     let load_bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(0) };
     let overrides = args.material.overrides()?;
     let volume = load_fabric_with_progress(&args.dir, &overrides, &load_bar).with_context(|| format!("cannot load fabric {}", args.dir.display()))?;
+    if let Some(note) = fabric_baker::volume::material_defaults_note(&args.dir, &overrides) {
+        eprintln!("{note}");
+    }
     load_bar.finish_and_clear();
     let load_seconds = t_load.elapsed().as_secs_f64();
     let camera = args.camera.camera(volume.bbox())?;

@@ -50,8 +50,8 @@ pub struct RenderArgs {
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.output.validate()?;
-    if args.repeat > crate::args::MAX_REPEAT {
-        anyhow::bail!("--repeat {}: must be at most {}", args.repeat, crate::args::MAX_REPEAT);
+    if !(1..=crate::args::MAX_REPEAT).contains(&args.repeat) {
+        anyhow::bail!("--repeat {}: frames to render, 1 to {}", args.repeat, crate::args::MAX_REPEAT);
     }
     if let Some(model) = &args.model {
         if args.backend == Backend::Cpu && args.scene.mesh.is_some() {
