@@ -31,8 +31,15 @@ pub enum ImageError {
     UnknownFormat { path: PathBuf },
     #[error("{path}: pixel ({x}, {y}) is {value} (NaN or Inf); refusing to write a broken image")]
     NonFinite { path: PathBuf, x: u32, y: u32, value: Vec3 },
-    #[error("{path}: image is {width}x{height}, which is empty or too large")]
+    #[error("{path}: image is {width}x{height}, which is empty or too large (at most 65536 per side and {MAX_IMAGE_PIXELS} pixels)")]
     BadSize { path: PathBuf, width: usize, height: usize },
+}
+
+/// Most pixels an image read may hold (1.6 GB of linear RGB): a 16384×8192 environment.
+pub const MAX_IMAGE_PIXELS: usize = 1 << 27;
+
+fn image_size_ok(w: usize, h: usize) -> bool {
+    w > 0 && h > 0 && w <= 65536 && h <= 65536 && w * h <= MAX_IMAGE_PIXELS
 }
 
 impl Image {
@@ -127,6 +134,15 @@ impl Image {
                 Ok(Image { width: w, height: h, pixels })
             }
             Some("exr") => {
+                // The header first: the pixels are allocated from its data window, so a
+                // tiny file claiming 30000×30000 would otherwise ask for 10 GB.
+                let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|error| ImageError::Exr { path: path.into(), error })?;
+                for header in &meta.headers {
+                    let (w, h) = (header.layer_size.width(), header.layer_size.height());
+                    if !image_size_ok(w, h) {
+                        return Err(ImageError::BadSize { path: path.into(), width: w, height: h });
+                    }
+                }
                 let img = exr::image::read::read_first_rgba_layer_from_file(
                     path,
                     |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
@@ -134,7 +150,7 @@ impl Image {
                 )
                 .map_err(|error| ImageError::Exr { path: path.into(), error })?;
                 let (w, h, pixels) = img.layer_data.channel_data.pixels;
-                if w == 0 || h == 0 || w > 65536 || h > 65536 {
+                if !image_size_ok(w, h) {
                     return Err(ImageError::BadSize { path: path.into(), width: w, height: h });
                 }
                 Ok(Image { width: w as u32, height: h as u32, pixels })

@@ -24,7 +24,7 @@ enum Command {
     /// Generate a procedural fabric volume (woven or felt) as a fabric directory.
     #[command(name = "gen")]
     Gen(cmd::generate::GenArgs),
-    /// Show what a fabric directory or a .vol file holds.
+    /// Show what a fabric directory, a .vol file or a hybrid model (.hyb) holds.
     Inspect(cmd::inspect::InspectArgs),
     /// Path-trace the input fabric volume (the reference renderer) and print paths/s.
     Reference(cmd::reference::ReferenceArgs),

@@ -125,7 +125,9 @@ pub struct BakeArgs {
     /// What the surface fit's renderings leave out.
     #[arg(long, value_enum, default_value = "above")]
     pub mask: MaskArg,
-    /// Scale of the fiber-level detail h0 − h in the normal map.
+    /// Scale of the fiber-level detail h0 − h in the normal map (`fabric geometry
+    /// --detail-strength`, whose default 1 is the detail as measured; the bake's 0.25 is
+    /// what its held-out views preferred, baker/FIT_MEASUREMENTS.md).
     #[arg(long, default_value_t = 0.25)]
     pub normal_detail: f32,
     /// Scale of the normals' tilt from +Z (1 = the geometry stage's normals, 0 = flat).

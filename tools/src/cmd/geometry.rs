@@ -42,7 +42,8 @@ pub struct GeometryArgs {
     /// Gaussian σ as a fraction of the filter size.
     #[arg(long, default_value_t = 1.0 / 6.0)]
     pub sigma_per_filter_size: f32,
-    /// Scale of the fiber-level detail in the normal map (1 = as measured).
+    /// Scale of the fiber-level detail in the normal map (1 = as measured; `fabric bake
+    /// --normal-detail` sets the same scale, 0.25 by default there).
     #[arg(long, default_value_t = 1.0)]
     pub detail_strength: f32,
     /// Surface voxels (from the top of each column) whose fiber axes make the tangent.

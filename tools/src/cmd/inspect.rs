@@ -17,7 +17,8 @@ use crate::args::MaterialArgs;
 
 #[derive(Args, Debug)]
 pub struct InspectArgs {
-    /// A fabric directory (density.vol, albedo.vol, orientation.vol) or one .vol file.
+    /// A fabric directory (density.vol, albedo.vol, orientation.vol), one .vol file, or a
+    /// hybrid model (.hyb).
     pub path: std::path::PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]

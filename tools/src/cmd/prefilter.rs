@@ -95,7 +95,8 @@ pub struct PrefilterCmdArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Measure the chain afterwards: far views (16 and 32 px across the tile at 0°, 45°,
-    /// 70°) and a distance sweep, against level 0 with 64 samples per pixel.
+    /// 70°) and a distance sweep, against level 0 with at least 4×4 samples per level-0
+    /// texel (baker/PREFILTER_MEASUREMENTS.md says why 64 per pixel is not a truth).
     #[arg(long)]
     pub check: bool,
     #[command(flatten)]

@@ -45,7 +45,8 @@ pub struct ReferenceArgs {
     /// ends at its bounding box, as Mitsuba renders it).
     #[arg(long)]
     pub periodic: bool,
-    /// Random seed; the same seed gives the same image for any thread count.
+    /// Random seed; the same seed gives the same image for any thread count. (0 here;
+    /// `gen`, `bake` and the others default to 1, a different stream.)
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Worker threads (default: all cores).
