@@ -168,3 +168,42 @@ fn damaged_exr_and_png_images_are_refused_or_read_sound() {
         assert!(refused > 100, "{ext}: {ok} read, {refused} refused");
     }
 }
+
+/// An uncompressed scanline EXR header (B, G, R as f32) claiming `w` × `h` pixels,
+/// followed by `tail` bytes instead of the pixels.
+fn exr_header(w: i32, h: i32, tail: usize) -> Vec<u8> {
+    fn attr(name: &str, ty: &str, data: &[u8]) -> Vec<u8> {
+        [name.as_bytes(), b"\0", ty.as_bytes(), b"\0", &(data.len() as i32).to_le_bytes(), data].concat()
+    }
+    let mut channels = Vec::new();
+    for c in ["B", "G", "R"] {
+        channels.extend([c.as_bytes(), b"\0", &2i32.to_le_bytes(), &[0u8; 4], &1i32.to_le_bytes(), &1i32.to_le_bytes()].concat());
+    }
+    channels.push(0);
+    let window: Vec<u8> = [0i32, 0, w - 1, h - 1].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut b = vec![0x76, 0x2f, 0x31, 0x01];
+    b.extend(2i32.to_le_bytes());
+    b.extend(attr("channels", "chlist", &channels));
+    b.extend(attr("compression", "compression", &[0]));
+    b.extend(attr("dataWindow", "box2i", &window));
+    b.extend(attr("displayWindow", "box2i", &window));
+    b.extend(attr("lineOrder", "lineOrder", &[0]));
+    b.extend(attr("pixelAspectRatio", "float", &1f32.to_le_bytes()));
+    b.extend(attr("screenWindowCenter", "v2f", &[0u8; 8]));
+    b.extend(attr("screenWindowWidth", "float", &1f32.to_le_bytes()));
+    b.push(0);
+    b.extend(vec![0u8; tail]);
+    b
+}
+
+#[test]
+fn an_exr_header_claiming_billions_of_pixels_is_refused_before_they_are_allocated() {
+    let path = tmp("exr_huge").join("huge.exr");
+    // 30000² pixels would be 10.8 GB of RGB; 100000² more than any machine holds. Both
+    // must be refused from the header alone (an allocation abort would kill this test).
+    for side in [30000, 100000] {
+        std::fs::write(&path, exr_header(side, side, 64)).unwrap();
+        let e = Image::read(&path, 1.0).unwrap_err().to_string();
+        assert!(e.contains("huge.exr") && e.contains(&format!("{side}x{side}")) && e.contains("too large"), "{e}");
+    }
+}
