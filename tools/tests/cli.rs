@@ -280,6 +280,15 @@ fn diff_thresholds_set_the_exit_code() {
     assert_eq!(v["failures"].as_array().map(|f| f.len()), Some(1), "{v}");
     let o = fabric().arg("diff").arg(&pa).arg(&pa).args(["--max-flip-mean", "nan"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--max-flip-mean"));
+    // --block: a checkerboard of ±0.05 cancels in every 2×2 block, not per pixel.
+    let c = Image::from_fn(48, 32, |x, y| a.get(x, y) + glam::Vec3::splat(if (x + y) % 2 == 0 { 0.05 } else { -0.05 }));
+    let pc = tmp("diff-c.exr");
+    c.write(&pc, 1.0).unwrap();
+    let o = fabric().arg("diff").arg(&pc).arg(&pa).args(["--json", "--block", "2"]).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON on stdout");
+    assert!(v["relative_rmse"].as_f64().unwrap() > 0.05 && v["relative_rmse_blocks"].as_f64().unwrap() < 1e-4 && v["block"] == 2, "{v}");
+    let o = fabric().arg("diff").arg(&pc).arg(&pa).args(["--block", "0"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--block 0"));
 }
 
 #[test]

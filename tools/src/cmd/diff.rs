@@ -37,6 +37,10 @@ pub struct DiffArgs {
     /// Fail if the relative RMSE exceeds this.
     #[arg(long)]
     pub max_rel_rmse: Option<f64>,
+    /// Also the relative RMSE over N×N blocks (both images box-filtered first), the
+    /// scale at which `fabric bake` reports its held-out error (N = 4).
+    #[arg(long, value_name = "N")]
+    pub block: Option<u32>,
 }
 
 #[derive(serde::Serialize)]
@@ -46,6 +50,11 @@ struct Report {
     width: u32,
     height: u32,
     relative_rmse: f64,
+    /// With `--block N`: N and the relative RMSE of the N×N block means.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    block: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    relative_rmse_blocks: Option<f64>,
     mean_relative_difference: f64,
     relative_mean_difference: f64,
     mean_test: f64,
@@ -73,12 +82,19 @@ pub fn run(args: DiffArgs) -> Result<()> {
     let b = Image::read(&args.b, args.exposure).with_context(|| format!("cannot read reference image {}", args.b.display()))?;
     let what = || format!("comparing {} with {}", args.a.display(), args.b.display());
     let flip = metrics::flip(&a, &b, args.exposure).with_context(what)?;
+    let relative_rmse_blocks = match args.block {
+        None => None,
+        Some(n) if n == 0 || n > a.width.min(a.height) => bail!("--block {n}: a block must be 1 to {} pixels (the image's smaller side)", a.width.min(a.height)),
+        Some(n) => Some(metrics::relative_rmse(&a.box_downsample(n), &b.box_downsample(n)).with_context(what)?),
+    };
     let report = Report {
         test: args.a.display().to_string(),
         reference: args.b.display().to_string(),
         width: a.width,
         height: a.height,
         relative_rmse: metrics::relative_rmse(&a, &b).with_context(what)?,
+        block: args.block,
+        relative_rmse_blocks,
         mean_relative_difference: metrics::mean_relative_difference(&a, &b).with_context(what)?,
         relative_mean_difference: metrics::relative_mean_difference(&a, &b).with_context(what)?,
         mean_test: a.mean(),
@@ -118,6 +134,9 @@ pub fn run(args: DiffArgs) -> Result<()> {
     } else {
         println!("{} vs reference {} ({}x{})", report.test, report.reference, report.width, report.height);
         println!("  relative RMSE               {:.6}", report.relative_rmse);
+        if let (Some(n), Some(e)) = (report.block, report.relative_rmse_blocks) {
+            println!("  {:<28}{e:.6}", format!("... over {n}x{n} blocks"));
+        }
         println!("  mean relative difference    {:.6}", report.mean_relative_difference);
         println!("  relative difference of means {:+.6} (means {:.6} vs {:.6})", report.relative_mean_difference, report.mean_test, report.mean_reference);
         println!("  FLIP (exposure {})          mean {:.5}, p95 {:.5}, max {:.5}", report.exposure, report.flip_mean, report.flip_p95, report.flip_max);
