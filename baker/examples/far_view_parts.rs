@@ -559,7 +559,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
             // whichever is nearer the children's mean response over random direction pairs.
             let pairs: Vec<(Vec3, Vec3)> = (0..64u32).map(|k| {
                 let h = |x: u32| ((x.wrapping_mul(2654435761) ^ (x >> 13)).wrapping_mul(2246822519) >> 8) as f32 / (1u32 << 24) as f32;
-                let d = |a: f32, b: f32| { let z = a.max(0.05); let r = (1.0 - z * z).sqrt(); Vec3::new(r * (6.2831853 * b).cos(), r * (6.2831853 * b).sin(), z) };
+                let d = |a: f32, b: f32| { let z = a.max(0.05); let r = (1.0 - z * z).sqrt(); Vec3::new(r * (std::f32::consts::TAU * b).cos(), r * (std::f32::consts::TAU * b).sin(), z) };
                 (d(h(4 * k), h(4 * k + 1)), d(h(4 * k + 2), h(4 * k + 3)))
             }).collect();
             let resp_at = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, a: Vec3, wi: Vec3, wo: Vec3| -> f64 {

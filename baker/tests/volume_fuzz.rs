@@ -138,7 +138,7 @@ fn damaged_fabric_directories_are_refused_or_load_sound() {
         match no_panic("fabric", case, &path, || load_fabric(&d, &MaterialOverrides::default())) {
             Ok(v) => {
                 let [x, y, z] = v.dims();
-                assert!(x * y * z == v.voxels().len() && v.voxels().len() > 0, "case {case}");
+                assert!(x * y * z == v.voxels().len() && !v.voxels().is_empty(), "case {case}");
                 for vox in v.voxels() {
                     let (rho, a, o) = (vox.density(), vox.albedo(), vox.orientation());
                     assert!(rho.is_finite() && (0.0..=MAX_DENSITY).contains(&rho), "case {case}: density {rho}");

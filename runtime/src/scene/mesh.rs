@@ -112,7 +112,7 @@ impl Mesh {
     /// Loads an OBJ file (triangulated; normals and UVs used when present).
     pub fn load_obj(path: &Path) -> Result<Mesh, MeshError> {
         let p = path.display().to_string();
-        let (models, _) = tobj::load_obj(path, &tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true, ..Default::default() }).map_err(|source| MeshError::Obj { path: p.clone(), source })?;
+        let (models, _) = tobj::load_obj(path, &tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true }).map_err(|source| MeshError::Obj { path: p.clone(), source })?;
         let mut m = Mesh::default();
         for model in models {
             let mesh = model.mesh;
@@ -150,7 +150,7 @@ impl Mesh {
         if m.indices.len() < 3 {
             return Err(MeshError::Empty { path: p });
         }
-        if m.triangle_areas().all(|a| !(a > 0.0)) {
+        if m.triangle_areas().all(|a| a <= 0.0) {
             return Err(MeshError::Degenerate { path: p, triangles: m.indices.len() / 3 });
         }
         m.derive_missing_frames();
