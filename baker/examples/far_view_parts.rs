@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine`, `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine` (with `SWEEP=1` too), `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -89,6 +89,19 @@ fn main() {
         }
         if std::env::var("SWEEP_SS").is_ok() {
             sweep_supersampled(&model);
+            return;
+        }
+        // `FINE=1`: the sweep's eight steps with `--coarse-filter fine` (the library's
+        // sweep renders the default filter).
+        if std::env::var("FINE").is_ok() {
+            for s in 0..8 {
+                let texels = 0.5f32 * 64f32.powf(s as f32 / 7.0);
+                let (camera, truth) = sweep_truth(&model, texels);
+                let opt = CpuRenderOptions { level: LevelChoice::Auto { bias: 0.0 }, periodic: true, coarse_filter: CoarseFilter::Fine, ..Default::default() };
+                let fine = relative_rmse(&render(&model, &camera, &[far_light()], &opt).unwrap(), &truth).unwrap();
+                let boxed = relative_rmse(&render(&model, &camera, &[far_light()], &CpuRenderOptions { coarse_filter: CoarseFilter::Box, ..opt.clone() }).unwrap(), &truth).unwrap();
+                println!("sweep {texels:5.2} texels/px: chain (fine) {:.2}%  (box) {:.2}%", 100.0 * fine, 100.0 * boxed);
+            }
             return;
         }
         // `SWEEP_AT=0.3,0.4`: steps at these texels per pixel instead of the sweep's eight.
