@@ -4,12 +4,15 @@
 //! error that names it; it may not panic, abort on an allocation a header asked for,
 //! or return values outside what the renderers and the baker assume (finite, the
 //! grid's own size, densities in [0, MAX_DENSITY], albedo in [0, 1], unit directions).
+//! The damage is `format::mutate`'s (the `.hyb` tests') plus extreme header words.
 //! Deterministic (fixed seeds), a few seconds in all; `volume_io.rs` has the named cases.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
 use fabric_baker::volume::*;
+use fabric_runtime::brdf::twin::SplitMix64;
+use fabric_runtime::hybrid::format::mutate::{KINDS, mutate};
 use glam::Vec3;
 
 fn tmp(name: &str) -> PathBuf {
@@ -19,52 +22,19 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// xorshift64*: a tiny deterministic generator for the mutations.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// Values that break readers: zero, negatives, the extremes of i32, NaN, ∞ and 1e30.
 const EXTREMES: [u32; 10] = [0, 0xFFFF_FFFF, 0x7FFF_FFFF, 0x8000_0000, 0x7FC0_0000, 0x7F80_0000, 0x7149_F2CA, 65536, 1 << 20, 3];
 
-/// One damaged copy of `good`; half the time aimed at the 48-byte header.
-fn mutate(good: &[u8], r: &mut Rng) -> Vec<u8> {
-    let mut b = good.to_vec();
-    let span = if r.below(2) == 0 { 48.min(b.len()) } else { b.len() };
-    match r.below(5) {
-        0 => {
-            for _ in 0..1 + r.below(6) {
-                let i = r.below(span);
-                b[i] = r.next() as u8;
-            }
-        }
-        1 => b.truncate(r.below(b.len())),
-        2 => {
-            let i = r.below(span / 4) * 4;
-            b[i..i + 4].copy_from_slice(&EXTREMES[r.below(EXTREMES.len())].to_le_bytes());
-        }
-        3 => {
-            let i = r.below(b.len() + 1);
-            let junk: Vec<u8> = (0..1 + r.below(32)).map(|_| r.next() as u8).collect();
-            b.splice(i..i, junk);
-        }
-        _ => {
-            let i = r.below(span);
-            b[i] ^= 1 << r.below(8);
-        }
+/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`), or
+/// a word of the 48-byte header set to an extreme value.
+fn damage(good: &[u8], r: &mut SplitMix64) -> Vec<u8> {
+    let kind = r.next_u64() % (KINDS + 1);
+    if kind < KINDS || good.len() < 48 {
+        return mutate(good, kind, r);
     }
+    let mut b = good.to_vec();
+    let at = (r.next_u64() % 12) as usize * 4;
+    b[at..at + 4].copy_from_slice(&EXTREMES[(r.next_u64() % EXTREMES.len() as u64) as usize].to_le_bytes());
     b
 }
 
@@ -75,13 +45,13 @@ fn no_panic<T>(what: &str, case: usize, path: &Path, read: impl FnOnce() -> T) -
 #[test]
 fn damaged_vol_files_are_refused_or_read_sound() {
     let d = tmp("vol");
-    let mut r = Rng(0x5851_F42D_4C95_7F2D);
+    let mut r = SplitMix64(0x5851_F42D_4C95_7F2D);
     let dims = [6, 5, 4];
     let n = dims.iter().product::<usize>();
     let bbox = Aabb::new(Vec3::new(-1.0, 0.0, 0.5), Vec3::new(2.0, 2.5, 1.0));
-    let scalars: Vec<f32> = (0..n).map(|_| r.unit()).collect();
-    let colours: Vec<f32> = (0..3 * n).map(|_| r.unit()).collect();
-    let dirs: Vec<f32> = (0..n).flat_map(|_| Vec3::new(r.unit() - 0.5, r.unit() - 0.5, r.unit() - 0.5).normalize_or(Vec3::Z).to_array()).collect();
+    let scalars: Vec<f32> = (0..n).map(|_| r.next_f32()).collect();
+    let colours: Vec<f32> = (0..3 * n).map(|_| r.next_f32()).collect();
+    let dirs: Vec<f32> = (0..n).flat_map(|_| Vec3::new(r.next_f32() - 0.5, r.next_f32() - 0.5, r.next_f32() - 0.5).normalize_or(Vec3::Z).to_array()).collect();
     for (enc, channels, data) in [
         (Encoding::Float32, 1, &scalars),
         (Encoding::Float16, 3, &colours),
@@ -93,7 +63,7 @@ fn damaged_vol_files_are_refused_or_read_sound() {
         let good = std::fs::read(&path).unwrap();
         let (mut ok, mut refused) = (0, 0);
         for case in 1..=1000 {
-            std::fs::write(&path, mutate(&good, &mut r)).unwrap();
+            std::fs::write(&path, damage(&good, &mut r)).unwrap();
             match no_panic("vol", case, &path, || read_vol(&path)) {
                 Ok(g) => {
                     let cells: usize = g.dims.iter().product();
@@ -114,17 +84,17 @@ fn damaged_vol_files_are_refused_or_read_sound() {
 #[test]
 fn damaged_fabric_directories_are_refused_or_load_sound() {
     let d = tmp("fabric");
-    let mut r = Rng(0x2F69_3A5E_12B7_C0D1);
+    let mut r = SplitMix64(0x2F69_3A5E_12B7_C0D1);
     let dims = [5, 4, 3];
     let n = dims.iter().product::<usize>();
     let bbox = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 0.8, 0.3));
-    let density: Vec<f32> = (0..n).map(|i| if i % 3 == 0 { 0.0 } else { r.unit() }).collect();
-    let albedo: Vec<f32> = (0..3 * n).map(|_| r.unit()).collect();
-    let orientation: Vec<f32> = (0..n).flat_map(|_| Vec3::new(r.unit() - 0.5, r.unit() - 0.5, r.unit()).normalize_or(Vec3::Z).to_array()).collect();
+    let density: Vec<f32> = (0..n).map(|i| if i % 3 == 0 { 0.0 } else { r.next_f32() }).collect();
+    let albedo: Vec<f32> = (0..3 * n).map(|_| r.next_f32()).collect();
+    let orientation: Vec<f32> = (0..n).flat_map(|_| Vec3::new(r.next_f32() - 0.5, r.next_f32() - 0.5, r.next_f32()).normalize_or(Vec3::Z).to_array()).collect();
     let files = [(DENSITY_FILE, 1, &density), (ALBEDO_FILE, 3, &albedo), (ORIENTATION_FILE, 3, &orientation)];
     let mut good = Vec::new();
     for (name, channels, data) in files {
-        let enc = if r.below(2) == 0 { Encoding::Float32 } else { Encoding::Float16 };
+        let enc = if r.next_u64() % 2 == 0 { Encoding::Float32 } else { Encoding::Float16 };
         write_vol(&d.join(name), &VolGrid { dims, channels, bbox, data: data.clone() }, enc).unwrap();
         good.push(std::fs::read(d.join(name)).unwrap());
     }
@@ -132,9 +102,9 @@ fn damaged_fabric_directories_are_refused_or_load_sound() {
     load_fabric(&d, &MaterialOverrides::default()).unwrap();
     let (mut ok, mut refused) = (0, 0);
     for case in 1..=1200 {
-        let k = r.below(3);
+        let k = (r.next_u64() % 3) as usize;
         let path = d.join(files[k].0);
-        std::fs::write(&path, mutate(&good[k], &mut r)).unwrap();
+        std::fs::write(&path, damage(&good[k], &mut r)).unwrap();
         match no_panic("fabric", case, &path, || load_fabric(&d, &MaterialOverrides::default())) {
             Ok(v) => {
                 let [x, y, z] = v.dims();

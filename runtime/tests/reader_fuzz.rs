@@ -4,11 +4,14 @@
 //! bytes overwritten, fields set to extremes, truncated, spliced — and read again. A
 //! reader may refuse a file with an error; it may not panic, abort on a huge
 //! allocation, or hand back something that breaks the invariants the renderers rely on.
+//! The damage is `format::mutate`'s (the `.hyb` tests') plus extreme header words.
 //! Deterministic (fixed seeds), a few seconds in all.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
+use fabric_runtime::brdf::twin::SplitMix64;
+use fabric_runtime::hybrid::format::mutate::{KINDS, mutate};
 use fabric_runtime::image::Image;
 use fabric_runtime::scene::mesh::{MAX_COORDINATE, Mesh};
 use glam::{Vec3, Vec4};
@@ -20,55 +23,20 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// xorshift64*: a tiny deterministic generator for the mutations.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
+/// Values that break readers: zero, negatives, the extremes of i32, NaN, ∞ and 1e30.
+const EXTREMES: [u32; 10] = [0, 0xFFFF_FFFF, 0x7FFF_FFFF, 0x8000_0000, 0x7FC0_0000, 0x7F80_0000, 0x7149_F2CA, 65536, 1 << 20, 3];
 
-/// Values that break readers: zero, negatives, the extremes of i32, NaN and huge floats.
-const EXTREMES: [u32; 10] = [0, 0xFFFF_FFFF, 0x7FFF_FFFF, 0x8000_0000, 0x7FC0_0000, 0x7F80_0000, 0x7149_F2CA /* 1e30 */, 65536, 1 << 20, 3];
-
-/// One damaged copy of `good`.
-fn mutate(good: &[u8], r: &mut Rng) -> Vec<u8> {
+/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`:
+/// bit flips, truncation, overwritten words, spliced copies), or an aligned word set to
+/// an extreme value (most header fields are aligned little-endian words).
+fn damage(good: &[u8], r: &mut SplitMix64) -> Vec<u8> {
+    let kind = r.next_u64() % (KINDS + 1);
+    if kind < KINDS || good.len() < 4 {
+        return mutate(good, kind, r);
+    }
     let mut b = good.to_vec();
-    match r.below(6) {
-        0 => {
-            for _ in 0..1 + r.below(8) {
-                let i = r.below(b.len());
-                b[i] = r.next() as u8;
-            }
-        }
-        1 => b.truncate(r.below(b.len())),
-        2 if b.len() >= 4 => {
-            // An extreme little-endian u32/f32, aligned (most header fields are).
-            let i = r.below(b.len() / 4) * 4;
-            b[i..i + 4].copy_from_slice(&EXTREMES[r.below(EXTREMES.len())].to_le_bytes());
-        }
-        3 => {
-            let i = r.below(b.len() + 1);
-            let junk: Vec<u8> = (0..1 + r.below(64)).map(|_| r.next() as u8).collect();
-            b.splice(i..i, junk);
-        }
-        4 => {
-            let (a, n) = (r.below(b.len()), 1 + r.below(256));
-            let chunk: Vec<u8> = b[a..(a + n).min(b.len())].to_vec();
-            let i = r.below(b.len() + 1);
-            b.splice(i..i, chunk);
-        }
-        _ => {
-            let i = r.below(b.len());
-            b[i] ^= 1 << r.below(8);
-        }
-    }
+    let at = (r.next_u64() % (b.len() / 4) as u64) as usize * 4;
+    b[at..at + 4].copy_from_slice(&EXTREMES[(r.next_u64() % EXTREMES.len() as u64) as usize].to_le_bytes());
     b
 }
 
@@ -106,16 +74,16 @@ fn damaged_obj_files_are_refused_or_read_sound() {
     check_mesh(&Mesh::load_obj(&path).unwrap(), 0);
     // Text-level damage as well as bytes: tokens replaced by what breaks parsers.
     let tokens = ["nan", "inf", "-inf", "1e30", "-1", "0", "99999999999", "", "1/", "//", "f", "v", "3.4e38", "1e-45"];
-    let mut r = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut r = SplitMix64(0x9E37_79B9_7F4A_7C15);
     let (mut ok, mut refused) = (0, 0);
     for case in 1..=3000 {
         let bytes = if case % 2 == 0 {
-            mutate(good.as_bytes(), &mut r)
+            damage(good.as_bytes(), &mut r)
         } else {
             let mut words: Vec<String> = good.split(' ').map(String::from).collect();
-            for _ in 0..1 + r.below(3) {
-                let i = r.below(words.len());
-                let t = tokens[r.below(tokens.len())];
+            for _ in 0..1 + r.next_u64() % 3 {
+                let i = (r.next_u64() % words.len() as u64) as usize;
+                let t = tokens[(r.next_u64() % tokens.len() as u64) as usize];
                 // Keep the line break a word may end with, so that lines stay lines.
                 words[i] = if words[i].contains('\n') { format!("{t}\n{}", words[i].split_once('\n').unwrap().1) } else { t.to_string() };
             }
@@ -150,10 +118,10 @@ fn damaged_exr_and_png_images_are_refused_or_read_sound() {
         img.write(&path, 1.0).unwrap();
         let good = std::fs::read(&path).unwrap();
         check_image(&Image::read(&path, 1.0).unwrap(), 0);
-        let mut r = Rng(0xD1B5_4A32_D192_ED03 ^ ext.len() as u64);
+        let mut r = SplitMix64(0xD1B5_4A32_D192_ED03 ^ ext.len() as u64);
         let (mut ok, mut refused) = (0, 0);
         for case in 1..=1500 {
-            std::fs::write(&path, mutate(&good, &mut r)).unwrap();
+            std::fs::write(&path, damage(&good, &mut r)).unwrap();
             match no_panic(ext, case, &path, |p| Image::read(p, 1.0)) {
                 Ok(i) => {
                     check_image(&i, case);
