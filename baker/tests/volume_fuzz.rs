@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use fabric_baker::volume::*;
 use fabric_runtime::brdf::twin::SplitMix64;
-use fabric_runtime::hybrid::format::mutate::{KINDS, mutate};
+use fabric_runtime::hybrid::format::mutate::{KINDS, extreme_word, mutate};
 use glam::Vec3;
 
 fn tmp(name: &str) -> PathBuf {
@@ -22,20 +22,11 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// Values that break readers: zero, negatives, the extremes of i32, NaN, ∞ and 1e30.
-const EXTREMES: [u32; 10] = [0, 0xFFFF_FFFF, 0x7FFF_FFFF, 0x8000_0000, 0x7FC0_0000, 0x7F80_0000, 0x7149_F2CA, 65536, 1 << 20, 3];
-
-/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`), or
-/// a word of the 48-byte header set to an extreme value.
+/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`),
+/// or a word of the 48-byte header set to an extreme value.
 fn damage(good: &[u8], r: &mut SplitMix64) -> Vec<u8> {
     let kind = r.next_u64() % (KINDS + 1);
-    if kind < KINDS || good.len() < 48 {
-        return mutate(good, kind, r);
-    }
-    let mut b = good.to_vec();
-    let at = (r.next_u64() % 12) as usize * 4;
-    b[at..at + 4].copy_from_slice(&EXTREMES[(r.next_u64() % EXTREMES.len() as u64) as usize].to_le_bytes());
-    b
+    if kind < KINDS { mutate(good, kind, r) } else { extreme_word(good, 48, r) }
 }
 
 fn no_panic<T>(what: &str, case: usize, path: &Path, read: impl FnOnce() -> T) -> T {
