@@ -478,3 +478,30 @@ fn a_lommel_seeliger_chain_is_fitted_with_its_law() {
         assert!(chain.mean() > 1.05 * render_at(&lambert, level as u32, 1).mean(), "the law brightens the diffuse part");
     }
 }
+
+#[test]
+fn the_far_view_check_measures_the_coarse_filter_it_is_given() {
+    // A synthetic model with flyaways over a fifth of its texels, two layers above the
+    // surface (depth ≥ 0.03 below the top; voxels 0.1/64 deep), axes along x or y.
+    let mut m = synthetic_model(32, 3);
+    m.levels.truncate(1);
+    m.meta.fit_error.truncate(1);
+    let voxels: Vec<(u32, u32, FlyawayInput)> = (0..32u32 * 32)
+        .filter(|k| (k * 7 + k / 32 * 3) % 5 == 0)
+        .map(|k| (k % 32, k / 32, FlyawayInput { depth: (k % 2) as u16, alpha: 0.8, tangent: if k % 3 == 0 { Vec3::X } else { Vec3::Y }, param: 0 }))
+        .collect();
+    add_flyaways(&mut m, 0, &voxels, &plain_params()).unwrap();
+    let (chain, _) = prefilter(&m, &PrefilterOptions::default(), &NoProgress).unwrap();
+    use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, far_view, far_view_filtered};
+    use fabric_runtime::cpu::CoarseFilter;
+    for polar in [0.0f32, 45.0] {
+        // 4 texels per pixel: coarse levels and their flyaway grid.
+        let default = far_view(&chain, polar, 8).unwrap();
+        let boxed = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Box).unwrap();
+        let fine = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Fine).unwrap();
+        assert_eq!(default, boxed, "the default check is the box filter's");
+        // The truth and level 0 do not depend on the filter; the chain does.
+        assert_eq!((fine.level0, fine.truth_noise), (boxed.level0, boxed.truth_noise));
+        assert!(fine.chain.is_finite() && fine.chain != boxed.chain, "{polar}°: fine {} box {}", fine.chain, boxed.chain);
+    }
+}

@@ -247,7 +247,7 @@ fn prefilter_rebuilds_the_chain_and_refuses_bad_input() {
     assert_eq!(chain.levels[0], m.levels[0], "level 0 is kept as it is");
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
     assert_eq!(report["prefilter"]["levels"].as_array().map(|a| a.len()), Some(5));
-    for args in [vec!["--prefilter-tolerance", "nan"], vec!["--prefilter-max-lobes", "9"], vec!["--levels", "40"]] {
+    for args in [vec!["--prefilter-tolerance", "nan"], vec!["--prefilter-max-lobes", "9"], vec!["--levels", "40"], vec!["--check", "--check-filter", "nope"]] {
         let o = fabric().arg("prefilter").arg(&model).arg("--out").arg(tmp("never.hyb")).args(&args).output().unwrap();
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && !stderr.contains("panicked") && stderr.contains("error"), "{args:?}: {stderr}");

@@ -16,7 +16,7 @@
 use glam::Vec3;
 use serde::Serialize;
 
-use fabric_runtime::cpu::{CpuRenderError, CpuRenderOptions, LevelChoice, render};
+use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, render};
 use fabric_runtime::hybrid::HybridModel;
 use fabric_runtime::image::Image;
 use fabric_runtime::metrics::relative_rmse;
@@ -67,13 +67,14 @@ fn enlarged(camera: &Camera, f: u32) -> Camera {
     Camera { width: camera.width * f, height: camera.height * f, ..*camera }
 }
 
-fn compare(model: &HybridModel, camera: &Camera, light: &[Light], texels_per_pixel: f32) -> Result<Comparison, CpuRenderError> {
+fn compare(model: &HybridModel, camera: &Camera, light: &[Light], texels_per_pixel: f32, filter: CoarseFilter) -> Result<Comparison, CpuRenderError> {
     let f = ((texels_per_pixel * TRUTH_SAMPLES_PER_TEXEL / TRUTH_SUPERSAMPLING as f32).ceil() as u32).clamp(1, 64);
     let big = enlarged(camera, f);
     let truth = render(model, &big, light, &options(LevelChoice::Fixed(0), TRUTH_SUPERSAMPLING))?.box_downsample(f);
     let other = render(model, &big, light, &options(LevelChoice::Fixed(0), 11))?.box_downsample(f);
-    let chain = render(model, camera, light, &options(LevelChoice::Auto { bias: 0.0 }, 1))?;
-    let nearest = render(model, camera, light, &options(LevelChoice::Nearest { bias: 0.0 }, 1))?;
+    // The chain with the coarse filter under test; level 0 and the truth have no coarse level.
+    let chain = render(model, camera, light, &CpuRenderOptions { coarse_filter: filter, ..options(LevelChoice::Auto { bias: 0.0 }, 1) })?;
+    let nearest = render(model, camera, light, &CpuRenderOptions { coarse_filter: filter, ..options(LevelChoice::Nearest { bias: 0.0 }, 1) })?;
     let level0 = render(model, camera, light, &options(LevelChoice::Fixed(0), 1))?;
     let e = |a: &Image| relative_rmse(a, &truth).unwrap_or(f64::INFINITY);
     Ok(Comparison { chain: e(&chain), level0: e(&level0), chain_nearest: e(&nearest), truth_noise: e(&other) })
@@ -99,11 +100,16 @@ pub fn far_view(model: &HybridModel, polar_deg: f32, pixels: u32) -> Result<FarV
 
 /// [`far_view`] at azimuth `azimuth_deg`.
 pub fn far_view_at(model: &HybridModel, polar_deg: f32, azimuth_deg: f32, pixels: u32) -> Result<FarViewError, CpuRenderError> {
+    far_view_filtered(model, polar_deg, azimuth_deg, pixels, CoarseFilter::default())
+}
+
+/// [`far_view_at`] with the chain rendered through `filter` (`--coarse-filter`).
+pub fn far_view_filtered(model: &HybridModel, polar_deg: f32, azimuth_deg: f32, pixels: u32, filter: CoarseFilter) -> Result<FarViewError, CpuRenderError> {
     let camera = far_camera_at(model, polar_deg, azimuth_deg, pixels);
     let texels_per_pixel = model.width() as f32 / pixels as f32;
     // A grazing view stretches the footprint by 1/cos θ along the view.
     let stretch = 1.0 / polar_deg.to_radians().cos().max(0.1);
-    let c = compare(model, &camera, &[far_light()], texels_per_pixel * stretch)?;
+    let c = compare(model, &camera, &[far_light()], texels_per_pixel * stretch, filter)?;
     Ok(FarViewError { polar_deg, pixels, texels_per_pixel, chain: c.chain, level0: c.level0, chain_nearest: c.chain_nearest, truth_noise: c.truth_noise })
 }
 
@@ -122,13 +128,23 @@ pub struct SweepStep {
 /// The distance sweep: `steps` perspective views of `pixels`² at polar 45°, from where
 /// a pixel covers ½ texel to 32 texels at the image centre (geometric steps).
 pub fn distance_sweep(model: &HybridModel, pixels: u32, steps: usize) -> Result<Vec<SweepStep>, CpuRenderError> {
+    distance_sweep_filtered(model, pixels, steps, CoarseFilter::default())
+}
+
+/// [`distance_sweep`] with the chain rendered through `filter` (`--coarse-filter`).
+pub fn distance_sweep_filtered(model: &HybridModel, pixels: u32, steps: usize, filter: CoarseFilter) -> Result<Vec<SweepStep>, CpuRenderError> {
     let (near, far) = (0.5f32, 32.0f32);
-    (0..steps).map(|s| sweep_step(model, pixels, near * (far / near).powf(s as f32 / (steps.max(2) - 1) as f32))).collect()
+    (0..steps).map(|s| sweep_step_filtered(model, pixels, near * (far / near).powf(s as f32 / (steps.max(2) - 1) as f32), filter)).collect()
 }
 
 /// One step of [`distance_sweep`]: the tile at 45° from where a pixel at the view's
 /// centre spans `texels` level-0 texels.
 pub fn sweep_step(model: &HybridModel, pixels: u32, texels: f32) -> Result<SweepStep, CpuRenderError> {
+    sweep_step_filtered(model, pixels, texels, CoarseFilter::default())
+}
+
+/// [`sweep_step`] with the chain rendered through `filter`.
+pub fn sweep_step_filtered(model: &HybridModel, pixels: u32, texels: f32, filter: CoarseFilter) -> Result<SweepStep, CpuRenderError> {
     let b = model.bounds();
     let centre = Vec3::new(0.5 * (b.min.x + b.max.x), 0.5 * (b.min.y + b.max.y), model.tile.top_z);
     let fov = 40f32;
@@ -139,6 +155,6 @@ pub fn sweep_step(model: &HybridModel, pixels: u32, texels: f32) -> Result<Sweep
     let d = texels * texel / pixel_at(1.0);
     let camera = Camera { origin: centre + d * dir, target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: fov }, width: pixels, height: pixels };
     // The far corners of the view see up to ~1.6 times the centre's footprint.
-    let c = compare(model, &camera, &[far_light()], 1.6 * texels * std::f32::consts::SQRT_2)?;
+    let c = compare(model, &camera, &[far_light()], 1.6 * texels * std::f32::consts::SQRT_2, filter)?;
     Ok(SweepStep { distance: d, texels_per_pixel: texels, chain: c.chain, level0: c.level0, chain_nearest: c.chain_nearest, truth_noise: c.truth_noise })
 }

@@ -99,28 +99,39 @@ pub struct PrefilterCmdArgs {
     /// texel (baker/PREFILTER_MEASUREMENTS.md says why 64 per pixel is not a truth).
     #[arg(long)]
     pub check: bool,
+    /// The renderer's coarse filter that --check measures (as `render --coarse-filter`).
+    #[arg(long, default_value = "box", value_parser = ["box", "fine", "bilinear"])]
+    pub check_filter: String,
     #[command(flatten)]
     pub prefilter: PrefilterArgs,
 }
 
-/// Prints the far-view and sweep errors of `model`; returns them for the report.
-pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel) -> Result<serde_json::Value> {
-    use fabric_baker::prefilter::far_view::{distance_sweep, far_view};
-    println!("far views (relative RMSE against level 0 at >= 4x4 samples per texel): auto levels 1 spp | nearest level 1 spp | level 0 1 spp | truth's own noise");
+/// Prints the far-view and sweep errors of `model` with the chain rendered through
+/// `filter` ("box", "fine" or "bilinear"); returns them for the report.
+pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel, filter: &str) -> Result<serde_json::Value> {
+    use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, distance_sweep_filtered, far_view_filtered};
+    use fabric_runtime::cpu::CoarseFilter;
+    let coarse = match filter {
+        "box" => CoarseFilter::Box,
+        "fine" => CoarseFilter::Fine,
+        "bilinear" => CoarseFilter::Bilinear,
+        other => anyhow::bail!("--check-filter {other}: box, fine or bilinear"),
+    };
+    println!("far views, coarse filter {filter} (relative RMSE against level 0 at >= 4x4 samples per texel): auto levels 1 spp | nearest level 1 spp | level 0 1 spp | truth's own noise");
     let mut views = Vec::new();
     for pixels in [16u32, 32] {
         for polar in [0.0f32, 45.0, 70.0] {
-            let e = far_view(model, polar, pixels)?;
+            let e = far_view_filtered(model, polar, VIEW_AZIMUTH, pixels, coarse)?;
             println!("  {pixels:>3} px ({:>4.1} texels/px) at {polar:>4.1}°: {:>6.2}% | {:>6.2}% | {:>6.2}% | {:>5.2}%", e.texels_per_pixel, 100.0 * e.chain, 100.0 * e.chain_nearest, 100.0 * e.level0, 100.0 * e.truth_noise);
             views.push(e);
         }
     }
     println!("distance sweep (32x32 px, perspective, 45°):");
-    let sweep = distance_sweep(model, 32, 8)?;
+    let sweep = distance_sweep_filtered(model, 32, 8, coarse)?;
     for s in &sweep {
         println!("  {:>6.2} texels/px: {:>6.2}% | {:>6.2}% | {:>6.2}% | {:>5.2}%", s.texels_per_pixel, 100.0 * s.chain, 100.0 * s.chain_nearest, 100.0 * s.level0, 100.0 * s.truth_noise);
     }
-    Ok(serde_json::json!({ "far_views": views, "distance_sweep": sweep }))
+    Ok(serde_json::json!({ "coarse_filter": filter, "far_views": views, "distance_sweep": sweep }))
 }
 
 /// Prints a report's table.
@@ -172,7 +183,7 @@ pub fn run(args: PrefilterCmdArgs) -> Result<()> {
     bars.finish();
     print_report(&report);
     write_file(&out, &args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
-    let check = if args.check { Some(check_chain(&out)?) } else { None };
+    let check = if args.check { Some(check_chain(&out, &args.check_filter)?) } else { None };
     let path = args.report.clone().unwrap_or_else(|| args.out.with_extension("json"));
     let json = serde_json::json!({ "prefilter": report, "check": check });
     std::fs::write(&path, serde_json::to_string_pretty(&json)?).with_context(|| format!("cannot write {}", path.display()))?;
