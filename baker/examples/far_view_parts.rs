@@ -91,16 +91,13 @@ fn main() {
             sweep_supersampled(&model);
             return;
         }
-        // `FINE=1`: the sweep's eight steps with `--coarse-filter fine` (the library's
-        // sweep renders the default filter).
+        // `FINE=1`: the sweep's eight steps with `--coarse-filter fine` and the box's.
         if std::env::var("FINE").is_ok() {
-            for s in 0..8 {
-                let texels = 0.5f32 * 64f32.powf(s as f32 / 7.0);
-                let (camera, truth) = sweep_truth(&model, texels);
-                let opt = CpuRenderOptions { level: LevelChoice::Auto { bias: 0.0 }, periodic: true, coarse_filter: CoarseFilter::Fine, ..Default::default() };
-                let fine = relative_rmse(&render(&model, &camera, &[far_light()], &opt).unwrap(), &truth).unwrap();
-                let boxed = relative_rmse(&render(&model, &camera, &[far_light()], &CpuRenderOptions { coarse_filter: CoarseFilter::Box, ..opt.clone() }).unwrap(), &truth).unwrap();
-                println!("sweep {texels:5.2} texels/px: chain (fine) {:.2}%  (box) {:.2}%", 100.0 * fine, 100.0 * boxed);
+            use fabric_baker::prefilter::far_view::distance_sweep_filtered;
+            let fine = distance_sweep_filtered(&model, 32, 8, CoarseFilter::Fine).expect("the sweep");
+            let boxed = distance_sweep_filtered(&model, 32, 8, CoarseFilter::Box).expect("the sweep");
+            for (f, b) in fine.iter().zip(&boxed) {
+                println!("sweep {:5.2} texels/px: chain (fine) {:.2}%  (box) {:.2}%", f.texels_per_pixel, 100.0 * f.chain, 100.0 * b.chain);
             }
             return;
         }
