@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use fabric_baker::volume::*;
 use fabric_runtime::brdf::twin::SplitMix64;
-use fabric_runtime::hybrid::format::mutate::{KINDS, extreme_word, mutate};
+use fabric_runtime::hybrid::format::mutate::damage;
 use glam::Vec3;
 
 fn tmp(name: &str) -> PathBuf {
@@ -22,12 +22,8 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`),
-/// or a word of the 48-byte header set to an extreme value.
-fn damage(good: &[u8], r: &mut SplitMix64) -> Vec<u8> {
-    let kind = r.next_u64() % (KINDS + 1);
-    if kind < KINDS { mutate(good, kind, r) } else { extreme_word(good, 48, r) }
-}
+/// The `.vol` header's bytes, where [`damage`] puts its extreme words.
+const VOL_HEADER: usize = 48;
 
 fn no_panic<T>(what: &str, case: usize, path: &Path, read: impl FnOnce() -> T) -> T {
     catch_unwind(AssertUnwindSafe(read)).unwrap_or_else(|_| panic!("{what}: case {case} panicked reading {}", path.display()))
@@ -54,7 +50,7 @@ fn damaged_vol_files_are_refused_or_read_sound() {
         let good = std::fs::read(&path).unwrap();
         let (mut ok, mut refused) = (0, 0);
         for case in 1..=1000 {
-            std::fs::write(&path, damage(&good, &mut r)).unwrap();
+            std::fs::write(&path, damage(&good, VOL_HEADER, &mut r)).unwrap();
             match no_panic("vol", case, &path, || read_vol(&path)) {
                 Ok(g) => {
                     let cells: usize = g.dims.iter().product();
@@ -95,7 +91,7 @@ fn damaged_fabric_directories_are_refused_or_load_sound() {
     for case in 1..=1200 {
         let k = (r.next_u64() % 3) as usize;
         let path = d.join(files[k].0);
-        std::fs::write(&path, damage(&good[k], &mut r)).unwrap();
+        std::fs::write(&path, damage(&good[k], VOL_HEADER, &mut r)).unwrap();
         match no_panic("fabric", case, &path, || load_fabric(&d, &MaterialOverrides::default())) {
             Ok(v) => {
                 let [x, y, z] = v.dims();

@@ -11,7 +11,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
 use fabric_runtime::brdf::twin::SplitMix64;
-use fabric_runtime::hybrid::format::mutate::{KINDS, extreme_word, mutate};
+use fabric_runtime::hybrid::format::mutate::damage;
 use fabric_runtime::image::Image;
 use fabric_runtime::scene::mesh::{MAX_COORDINATE, Mesh};
 use glam::{Vec3, Vec4};
@@ -21,13 +21,6 @@ fn tmp(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-/// One damaged copy of `good`: the `.hyb` tests' kinds of damage (`format::mutate`),
-/// or an aligned word set to an extreme value (most header fields are aligned).
-fn damage(good: &[u8], r: &mut SplitMix64) -> Vec<u8> {
-    let kind = r.next_u64() % (KINDS + 1);
-    if kind < KINDS { mutate(good, kind, r) } else { extreme_word(good, good.len(), r) }
 }
 
 /// Reads `path` with `read` under catch_unwind; a panic fails the test with the case.
@@ -68,7 +61,7 @@ fn damaged_obj_files_are_refused_or_read_sound() {
     let (mut ok, mut refused) = (0, 0);
     for case in 1..=3000 {
         let bytes = if case % 2 == 0 {
-            damage(good.as_bytes(), &mut r)
+            damage(good.as_bytes(), good.len(), &mut r)
         } else {
             let mut words: Vec<String> = good.split(' ').map(String::from).collect();
             for _ in 0..1 + r.next_u64() % 3 {
@@ -111,7 +104,7 @@ fn damaged_exr_and_png_images_are_refused_or_read_sound() {
         let mut r = SplitMix64(0xD1B5_4A32_D192_ED03 ^ ext.len() as u64);
         let (mut ok, mut refused) = (0, 0);
         for case in 1..=1500 {
-            std::fs::write(&path, damage(&good, &mut r)).unwrap();
+            std::fs::write(&path, damage(&good, good.len(), &mut r)).unwrap();
             match no_panic(ext, case, &path, |p| Image::read(p, 1.0)) {
                 Ok(i) => {
                     check_image(&i, case);

@@ -59,3 +59,10 @@ pub fn extreme_word(good: &[u8], within: usize, rng: &mut SplitMix64) -> Vec<u8>
     }
     b
 }
+
+/// One damaged copy of `good` for a reader's fuzz test: one of the [`KINDS`] of
+/// [`mutate`], or (as often as each) [`extreme_word`] among the first `header` bytes.
+pub fn damage(good: &[u8], header: usize, rng: &mut SplitMix64) -> Vec<u8> {
+    let kind = rng.next_u64() % (KINDS + 1);
+    if kind < KINDS { mutate(good, kind, rng) } else { extreme_word(good, header, rng) }
+}
