@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine` (with `SWEEP=1` too), `PART=surface` or `PART=flyaways` one part alone (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone, `OPACITY_POLARS=0,30,…` at those angles), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine` (with `SWEEP=1` too), `PART=surface` or `PART=flyaways` one part alone (`PART=through`: the flyaways black, the surface through and under them) (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -81,6 +81,7 @@ fn main() {
         let model = match std::env::var("PART").as_deref() {
             Ok("surface") => without_flyaways(&model),
             Ok("flyaways") => surface_black(&model),
+            Ok("through") => flyaways_black(&model),
             _ => model,
         };
         if let Ok(list) = std::env::var("SWEEP_LEVELS") {
@@ -120,14 +121,21 @@ fn main() {
         return;
     }
     if std::env::var("OPACITY_ONLY").is_ok() {
-        for polar in [0.0, 45.0, 70.0] {
+        // `OPACITY_POLARS=0,30,60`: at those polar angles instead.
+        let polars: Vec<f32> = std::env::var("OPACITY_POLARS").map_or(vec![0.0, 45.0, 70.0], |l| l.split(',').map(|v| v.trim().parse().expect("a polar angle")).collect());
+        for polar in polars {
             opacity_by_level(&model, polar);
         }
         return;
     }
     if let Ok(part) = std::env::var("PART") {
-        // One part alone, as in the sweep: `PART=surface` or `PART=flyaways`.
-        let one = if part == "surface" { without_flyaways(&model) } else { surface_black(&model) };
+        // One part alone, as in the sweep: `PART=surface`, `PART=flyaways` or
+        // `PART=through` (the flyaways black: the surface through and under them).
+        let one = match part.as_str() {
+            "surface" => without_flyaways(&model),
+            "through" => flyaways_black(&model),
+            _ => surface_black(&model),
+        };
         views(&one, pixels, &format!("{part:<13}"));
         return;
     }
@@ -155,6 +163,16 @@ fn without_flyaways(model: &HybridModel) -> HybridModel {
     bare
 }
 
+/// The flyaways black: the surface as their opacity lets it through (and shadows it).
+fn flyaways_black(model: &HybridModel) -> HybridModel {
+    let mut dark = model.clone();
+    for f in dark.levels.iter_mut().filter_map(|l| l.flyaways.as_mut()) {
+        f.table.headers.iter_mut().for_each(|h| h.kd = [0; 3]);
+        f.table.lobes.iter_mut().for_each(|l| l.k = [0; 3]);
+    }
+    dark
+}
+
 /// The surface black: what the flyaways alone bring.
 fn surface_black(model: &HybridModel) -> HybridModel {
     let mut dark = model.clone();
@@ -179,6 +197,7 @@ pub fn opacity_by_level(model: &HybridModel, polar: f32) {
     let scene = Scene::new(model, &camera, &light, options).unwrap();
     let n = 128u32;
     let mut line = format!("  opacity at {polar}°:");
+    let mut first = None;
     for level in 0..model.levels.len().min(6) {
         let mut sum = 0.0f64;
         for y in 0..n {
@@ -187,7 +206,10 @@ pub fn opacity_by_level(model: &HybridModel, polar: f32) {
                 sum += scene.trace_ray(&ray, level).flyaway_opacity as f64;
             }
         }
-        line += &format!(" L{level} {:.3}", sum / (n * n) as f64);
+        let opacity = sum / (n * n) as f64;
+        // The exponent on the path that would give level 0's mean transmittance.
+        let l0 = *first.get_or_insert(opacity);
+        line += &format!(" L{level} {opacity:.3} (g {:.3})", (1.0 - l0).ln() / (1.0 - opacity).ln());
     }
     println!("{line}");
 }

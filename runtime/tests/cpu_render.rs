@@ -332,6 +332,10 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
     let edge = (dx1 * dx1 * s1).cbrt();
     let (lo, hi) = (Vec3::new(0.375, 0.5, -0.04), Vec3::new(0.5, 0.625, -0.02));
     let alpha = m.levels[1].flyaways.as_ref().unwrap().nodes[0].alpha();
+    // The same voxel with a path gain (format 1.9) of 1.3 − 0.01·θ: the exponent scaled.
+    let mut mg = m.clone();
+    mg.levels[1].flyaways.as_mut().unwrap().path_gain = Some(fabric_runtime::hybrid::PathGain(std::array::from_fn(|k| 1.3 - 0.1 * k as f32)));
+    mg.validate().unwrap();
     let mut checked = 0;
     for (theta, phi) in [(0.0f32, 0.0f32), (50.0, 10.0), (70.0, 135.0)] {
         let dir = fabric_runtime::scene::direction_from_angles(theta, phi);
@@ -339,7 +343,9 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
         let opts = CpuRenderOptions { level: LevelChoice::Fixed(1), ..Default::default() };
         let lights = [light];
         let scene = Scene::new(&m, &cam, &lights, opts.clone()).unwrap();
-        let plain = Scene::new(&m0, &cam, &lights, opts).unwrap();
+        let plain = Scene::new(&m0, &cam, &lights, opts.clone()).unwrap();
+        let gained = Scene::new(&mg, &cam, &lights, opts).unwrap();
+        let gain = 1.3 - 0.01 * theta;
         for py in 0..48 {
             for px in 0..48 {
                 let ray = cam.ray(px as f32 + 0.5, py as f32 + 0.5);
@@ -372,6 +378,9 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
                 // Path lengths agree to f32 rounding of the box crossings (~1e-6 of 0.02).
                 assert!((got.flyaway_opacity - opacity).abs() < 2e-4, "view ({theta}, {phi}) pixel ({px}, {py}): opacity {} vs {opacity} (path {path})", got.flyaway_opacity);
                 assert!((got.radiance - want).abs().max_element() < 2e-4, "view ({theta}, {phi}) pixel ({px}, {py}): {} vs {want}", got.radiance);
+                let with_gain = 1.0 - (1.0 - alpha).powf(gain * path / edge);
+                let g = gained.trace_ray(&ray, 1).flyaway_opacity;
+                assert!((g - with_gain).abs() < 2e-4, "view ({theta}, {phi}) pixel ({px}, {py}), gain {gain}: opacity {g} vs {with_gain}");
                 checked += 1;
             }
         }

@@ -629,9 +629,13 @@ fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
     // A second group of axes per node (format 1.8).
     let mut grouped = spread.clone();
     examples::add_axis_groups(&mut grouped);
+    // And a path gain per coarse level (format 1.9).
+    let mut gained = grouped.clone();
+    examples::add_path_gains(&mut gained);
     for case in &cases {
         assert_twins_agree(case.name, &compare(&pass, &spread, &lights, case));
         assert_twins_agree(&format!("{}, two groups", case.name), &compare(&pass, &grouped, &lights, case));
+        assert_twins_agree(&format!("{}, path gain", case.name), &compare(&pass, &gained, &lights, case));
         // The spreads and the groups matter on these views (so the agreement above is
         // about them).
         let single = render(&plain, &case.camera, &lights, &case.options).unwrap();
@@ -641,6 +645,9 @@ fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
         let two = render(&grouped, &case.camera, &lights, &case.options).unwrap();
         let moved = relative_rmse(&two, &with).unwrap();
         assert!(moved > 0.02, "{}: the groups moved the image by only {moved}", case.name);
+        let gain = render(&gained, &case.camera, &lights, &case.options).unwrap();
+        let moved = relative_rmse(&gain, &two).unwrap();
+        assert!(moved > 0.02, "{}: the path gains moved the image by only {moved}", case.name);
     }
     // Level 0 has no spreads: up close nothing changes on either backend.
     let near = Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 48, height: 40 };

@@ -374,6 +374,48 @@ fn flyaway_group_corruption_catalogue() {
     run_catalogue(&format::to_bytes(&group_sample()).unwrap(), cases);
 }
 
+fn gain_sample() -> HybridModel {
+    let mut m = group_sample();
+    examples::add_path_gains(&mut m);
+    m.validate().expect("the path gain sample is valid");
+    m
+}
+
+#[test]
+fn flyaway_path_gains_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = gain_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    assert_eq!(format::read(&bytes).unwrap(), m);
+    // Optional: a 1.8 reader skips the section and crosses coarse nodes by Beer's law.
+    let mut parts = Parts::of(&bytes);
+    let mut skipped = 0;
+    for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawayPathGain as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        assert_eq!(data.len(), 36);
+        assert!(e.level >= 1);
+        e.kind = 4004;
+        skipped += 1;
+    }
+    assert!(skipped > 0);
+    assert_eq!(format::read(&parts.assemble()).unwrap(), group_sample());
+}
+
+#[test]
+fn flyaway_path_gain_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("a gain past the range", |p| p.find(SectionKind::FlyawayPathGain, 1)[8..12].copy_from_slice(&1e9f32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::PathGain { level: 1, why }) if why.contains("20°"))),
+        ("a NaN gain", |p| p.find(SectionKind::FlyawayPathGain, 1)[32..36].copy_from_slice(&f32::NAN.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::PathGain { level: 1, why }) if why.contains("80°"))),
+        ("a zero gain", |p| p.find(SectionKind::FlyawayPathGain, 1)[0..4].copy_from_slice(&0f32.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::PathGain { level: 1, .. }))),
+        ("one gain short", |p| { let t = p.find(SectionKind::FlyawayPathGain, 1); t.truncate(t.len() - 4) }, |e| matches!(e, FormatError::Section { kind, why, .. } if kind == "FLYAWAY_PATH_GAIN" && why.contains("8 gains"))),
+        ("one gain too many", |p| p.find(SectionKind::FlyawayPathGain, 1).extend_from_slice(&1f32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, why, .. } if kind == "FLYAWAY_PATH_GAIN" && why.contains("10 gains"))),
+        ("not whole records", |p| p.find(SectionKind::FlyawayPathGain, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_PATH_GAIN")),
+        ("on level 0", |p| p.entry(SectionKind::FlyawayPathGain, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::PathGain { level: 0, .. }))),
+        ("on a level without flyaways", |p| p.entry(SectionKind::FlyawayPathGain, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
+    ];
+    run_catalogue(&format::to_bytes(&gain_sample()).unwrap(), cases);
+}
+
 /// Rewrites the compact spread sections as 1.5's wide ones (8 bytes, reserved 0).
 fn widen_spreads(parts: &mut Parts) {
     for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawaySpreadCompact as u32) {
@@ -556,8 +598,9 @@ fn semantic_corruption_catalogue() {
 /// never a panic. With the CRCs recomputed, semantic damage must be caught too.
 fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
     // The sample (wide surfaces, compact flyaway nodes), the compact sample (every
-    // compact record) and the group sample (spread records and axis groups, 1.8), in turn.
-    let models = [sample(), compact_sample(), group_sample()];
+    // compact record) and the gain sample (spread records and axis groups, 1.8; path
+    // gains, 1.9), in turn.
+    let models = [sample(), compact_sample(), gain_sample()];
     let files = models.each_ref().map(|m| format::to_bytes(m).unwrap());
     let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
     let (mut rejected, mut accepted) = (0, 0);
@@ -645,7 +688,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
         m

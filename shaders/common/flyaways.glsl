@@ -2,7 +2,7 @@
 // alpha-compositing what it crosses (DESIGN.md §5, §7).
 //
 // Twin: runtime/src/cpu/flyaways.rs (flyaway_opacity, march_flyaways, whose module docs
-// define the columns and the opacity 1 - (1 - alpha)^(l/s)); the shading of a node is
+// define the columns and the opacity 1 - (1 - alpha)^(g*l/s), g the level's path gain); the shading of a node is
 // the closure the CPU's Scene::march_level_flyaways passes, run on queued nodes (the same
 // sum in the same order; march_flyaways says why).
 #ifndef FLYAWAYS_GLSL
@@ -33,6 +33,17 @@ float flyaway_opacity(float alpha, float path, float edge) {
     return 1.0 - pow(max(1.0 - alpha, 0.0), path / edge);
 }
 
+// A coarse level's gain on the opacity exponent for a ray of unit direction d (format
+// 1.9): linear in the polar angle acos|d.z| between the nodes at 0, 10, ... 80 degrees,
+// constant past 80. Twin: PathGain::at (runtime/src/hybrid/flyaway.rs).
+float flyaway_path_gain(GpuLevel l, vec3 d) {
+    float theta = degrees(acos(min(abs(d.z), 1.0)));
+    float x = clamp(theta / 10.0, 0.0, 8.0);
+    uint k = min(uint(x), 7u);
+    float f = x - float(k);
+    return l.fly_gain[k] + f * (l.fly_gain[k + 1u] - l.fly_gain[k]);
+}
+
 // Marches the ray (o, d: unit, heading down) through the lists of `level` over
 // [t_start, t_end], shading each node it crosses at its entry point.
 FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_end, uint max_columns, inout uint shadow_limited) {
@@ -45,6 +56,8 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
     int span = 1 << level;
     ivec2 dims = ivec2(l.dims);
     bool periodic = model_periodic();
+    // One gain per ray: it depends on the ray's slant alone (HYBRID_FORMAT.md §7.3).
+    float gain = flyaway_path_gain(l, d);
     // Products with inv_texel and no fused multiply–add (`precise`): the column lines
     // fall where the CPU twin's do.
     vec2 u0 = (o.xy - model.origin) * model.inv_texel;
@@ -147,7 +160,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                 }
                 float t_in = max(t, (model.top_z - top - o.z) / d.z);
                 float t_out = min(t_next, (model.top_z - bottom - o.z) / d.z);
-                float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), t_out - t_in, l.fly_edge);
+                float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), gain * (t_out - t_in), l.fly_edge);
                 if (opacity > 0.0) {
                     q_t[qn] = t_in;
                     q_w[qn] = out_.transmittance * opacity;

@@ -46,6 +46,8 @@ struct GpuLevel {
     uint trans_base;    // first transmission record (binding 12), NO_NODE: none
     uint tilt_base;     // first view tilt record (binding 13), NO_NODE: none
     uint spread_base;   // first flyaway spread word in binding 6 (after the nodes), NO_NODE: none
+    float fly_gain[9];  // opacity exponent gain at polar 0, 10, ... 80 degrees (format 1.9; 1: none)
+    uint pad;
 };
 
 struct GpuQuadLevel {

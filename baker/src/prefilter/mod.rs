@@ -19,6 +19,7 @@ pub mod far_view;
 pub mod flyaways;
 pub mod lobe_fit;
 pub mod pairs;
+pub mod path_gain;
 pub mod view_tilt;
 
 use std::time::Instant;
@@ -97,12 +98,15 @@ pub struct PrefilterOptions {
     /// bytes per texel instead of 16 + 16·L, 6 per view tilt instead of 12, 8 per
     /// flyaway node instead of 16.
     pub compact: bool,
+    /// Fit each coarse flyaway level's path gain (format 1.9, [`path_gain`]): its mean
+    /// transmittance matched to level 0's at every polar angle; off: Beer's law from α.
+    pub path_gain: bool,
     pub seed: u64,
 }
 
 impl Default for PrefilterOptions {
     fn default() -> Self {
-        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, flyaway_groups: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, free_frames: true, view_tilt: true, compact: true, seed: 1 }
+        PrefilterOptions { tolerance: 0.03, max_lobes: DEFAULT_MAX_LOBES, pairs: 128, levels: None, flyaways: true, coverage: flyaways::Coverage::Projected, flyaway_spread: true, flyaway_groups: true, masking: false, light_visibility: false, periodic: true, evals_per_dim: 20, free_frames: true, view_tilt: true, compact: true, path_gain: true, seed: 1 }
     }
 }
 
@@ -147,6 +151,12 @@ pub struct LevelReport {
     /// their footprints (hit-weighted level-0 responses), without and with the tilt.
     pub view_tilt_error: Option<(f64, f64)>,
     pub view_tilt_bytes: u64,
+    /// The flyaways' path gain at polar 0°, 10°, … 80° (format 1.9; None: none), and the
+    /// mean transmittance of level 0's flyaways and of this level's without the gain at
+    /// those angles (what the gain matches).
+    pub flyaway_path_gain: Option<Vec<f32>>,
+    pub flyaway_transmittance_level0: Option<Vec<f64>>,
+    pub flyaway_transmittance_ungained: Option<Vec<f64>>,
     pub seconds: f64,
 }
 
@@ -162,6 +172,8 @@ pub struct PrefilterReport {
     pub chain_bytes: u64,
     /// Time spent fitting the view tilts of all levels.
     pub view_tilt_seconds: f64,
+    /// Time spent fitting the flyaways' path gains.
+    pub path_gain_seconds: f64,
 }
 
 fn level_bytes(l: &Level) -> u64 {
@@ -357,6 +369,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             view_tilt_error,
             view_tilt_bytes: l.view_tilt_bytes(),
             seconds: t0.elapsed().as_secs_f64(),
+            ..Default::default()
         });
         report.chain_bytes += level_bytes(&l);
         out.levels.push(l);
@@ -364,6 +377,20 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         finer_trans = bsdf.then_some(trans_targets);
     }
     drop(bar);
+    if opts.flyaways && opts.path_gain {
+        let t_gain = Instant::now();
+        let gains = path_gain::fit_path_gains(&out, opts.periodic, opts.seed);
+        for ((l, r), g) in out.levels[1..].iter_mut().zip(report.levels.iter_mut()).zip(gains) {
+            let (Some(f), Some(g)) = (l.flyaways.as_mut(), g) else { continue };
+            f.path_gain = Some(g.gain);
+            r.flyaway_path_gain = Some(g.gain.0.to_vec());
+            r.flyaway_transmittance_level0 = Some(g.level0_transmittance.to_vec());
+            r.flyaway_transmittance_ungained = Some(g.level_transmittance.to_vec());
+            r.flyaway_bytes = f.byte_size();
+        }
+        report.chain_bytes = out.levels[1..].iter().map(level_bytes).sum();
+        report.path_gain_seconds = t_gain.elapsed().as_secs_f64();
+    }
     let mut errors = vec![-1.0f32; count];
     if let Some(&e0) = model.meta.fit_error.first() {
         errors[0] = e0;

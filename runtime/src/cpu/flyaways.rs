@@ -5,8 +5,9 @@
 //! enters the top plane to where it meets the surface. In each column it walks the list
 //! top down (lists go strictly down, so the nodes it meets come in ray order): a node
 //! of depth k is the box [column] × [k·s_ℓ, (k+1)·s_ℓ] below the top plane. Crossing
-//! it over a path ℓ gives opacity o = 1 − (1 − α)^(ℓ/s), s = the voxel's edge, taken as
-//! the cube root of its volume (voxels need not be cubes); at level 0, α = 1 and the
+//! it over a path ℓ gives opacity o = 1 − (1 − α)^(g·ℓ/s), s = the voxel's edge, taken as
+//! the cube root of its volume (voxels need not be cubes), g the level's path gain at
+//! the ray's polar angle (1 without one: [`PathGain`], format 1.9); at level 0, α = 1 and the
 //! first node crossed is opaque: the first hit. The march stops once the transmittance
 //! falls below [`MIN_TRANSMITTANCE`].
 //!
@@ -16,7 +17,7 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::hybrid::{FlyawayNode, Flyaways, HybridModel};
+use crate::hybrid::{FlyawayNode, Flyaways, HybridModel, PathGain};
 use crate::scene::Ray;
 
 /// Below this transmittance the rest of the ray is invisible (≤ 1e-4 of its radiance is
@@ -44,6 +45,8 @@ pub struct FlyawayGrid {
     /// Edge used in the opacity exponent: (Δx_ℓ·Δy_ℓ·s_ℓ)^(1/3).
     edge: f32,
     periodic: bool,
+    /// The level's gain on the opacity exponent by the ray's polar angle (format 1.9).
+    gain: PathGain,
 }
 
 impl FlyawayGrid {
@@ -62,6 +65,7 @@ impl FlyawayGrid {
             voxel_depth,
             edge: (texel.x * texel.y * (span * span) as f32 * voxel_depth).cbrt(),
             periodic,
+            gain: l.flyaways.as_ref().and_then(|f| f.path_gain).unwrap_or(PathGain::ONE),
         }
     }
 }
@@ -140,6 +144,8 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
         }
         cursor[axis] = AxisCursor { tile, k };
     }
+    // One gain per ray: it depends on the ray's slant alone (HYBRID_FORMAT.md §7.3).
+    let gain = g.gain.at(ray.d);
     let depth_at = |t: f32| g.top_z - (ray.o.z + ray.d.z * t);
     let t_at_depth = |d: f32| (g.top_z - d - ray.o.z) / ray.d.z;
     let mut t = t_start;
@@ -178,7 +184,7 @@ pub fn visit_flyaways(f: &Flyaways, g: &FlyawayGrid, ray: &Ray, t_start: f32, t_
             }
             let t_in = t.max(t_at_depth(top));
             let t_out = t_next.min(t_at_depth(bottom));
-            let opacity = flyaway_opacity(node.alpha(), t_out - t_in, g.edge);
+            let opacity = flyaway_opacity(node.alpha(), gain * (t_out - t_in), g.edge);
             if opacity > 0.0 {
                 visit(index, node, t_in, out.transmittance * opacity);
                 out.transmittance *= 1.0 - opacity;

@@ -68,6 +68,8 @@ pub enum ModelError {
     FlyawayUnreached { level: usize, node: u32 },
     #[error("flyaway node {node} of level {level}: {why}")]
     FlyawayNode { level: usize, node: u32, why: String },
+    #[error("flyaway path gain of level {level}: {why}")]
+    PathGain { level: usize, why: String },
     #[error("bake metadata: {0}")]
     Meta(String),
 }

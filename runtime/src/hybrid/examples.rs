@@ -299,3 +299,15 @@ pub fn add_axis_groups(model: &mut HybridModel) {
         }
     }
 }
+
+/// Gives every coarse flyaway level of `model` a path gain (format 1.9) that rises with
+/// the polar angle and differs per level: g(θ_k) = 0.5 + 0.2·k + 0.1·ℓ at node k of
+/// level ℓ, so that a renderer that ignores or misreads it shows it.
+pub fn add_path_gains(model: &mut HybridModel) {
+    use crate::hybrid::{PATH_GAIN_NODES, PathGain};
+    for (level, l) in model.levels.iter_mut().enumerate().skip(1) {
+        if let Some(f) = l.flyaways.as_mut() {
+            f.path_gain = Some(PathGain(std::array::from_fn::<f32, PATH_GAIN_NODES, _>(|k| 0.5 + 0.2 * k as f32 + 0.1 * level as f32)));
+        }
+    }
+}

@@ -170,6 +170,46 @@ pub struct FlyawayInput {
     pub param: u32,
 }
 
+/// Polar angles of the path gain's nodes: 0°, 10°, … 80° (format 1.9).
+pub const PATH_GAIN_NODES: usize = 9;
+/// Degrees between the path gain's nodes.
+pub const PATH_GAIN_STEP_DEGREES: f32 = 10.0;
+/// The range a stored gain must lie in (a reader refuses others).
+pub const PATH_GAIN_RANGE: [f32; 2] = [0.25, 4.0];
+
+/// A coarse flyaway level's gain on its opacity exponent per polar angle θ of the ray
+/// (format 1.9, the optional `FLYAWAY_PATH_GAIN` section; runtime/HYBRID_FORMAT.md §7.3):
+/// a node crossed over a path ℓ has opacity 1 − (1 − α)^(g(θ)·ℓ/s), g linear in θ
+/// between the nodes at 0°, 10°, … 80° and constant past 80°. Fitted so that the level's
+/// mean transmittance over the tile matches level 0's at each node's angle
+/// (`baker/src/prefilter/path_gain.rs`): a coarse voxel's α says what it hides seen from
+/// above, and Beer's law from there is wrong at a slant by 5–20% in the transmittance
+/// (baker/PREFILTER_MEASUREMENTS.md, "The coarse flyaways' opacity by angle").
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct PathGain(pub [f32; PATH_GAIN_NODES]);
+
+impl PathGain {
+    /// No gain: Beer's law from α (level 0, and levels without the section).
+    pub const ONE: PathGain = PathGain([1.0; PATH_GAIN_NODES]);
+
+    /// The gain for a ray of direction `d` (unit): by its polar angle to the tile's
+    /// normal, θ = acos |d.z|. Twin: `flyaway_path_gain` in shaders/common/flyaways.glsl.
+    #[inline]
+    pub fn at(&self, d: Vec3) -> f32 {
+        let theta = d.z.abs().min(1.0).acos().to_degrees();
+        let x = (theta / PATH_GAIN_STEP_DEGREES).clamp(0.0, (PATH_GAIN_NODES - 1) as f32);
+        let k = (x as usize).min(PATH_GAIN_NODES - 2);
+        let f = x - k as f32;
+        self.0[k] + f * (self.0[k + 1] - self.0[k])
+    }
+
+    /// The first gain outside [`PATH_GAIN_RANGE`] (NaN included), with its node.
+    pub fn invalid(&self) -> Option<(usize, f32)> {
+        self.0.iter().copied().enumerate().find(|&(_, g)| !(g >= PATH_GAIN_RANGE[0] && g <= PATH_GAIN_RANGE[1]))
+    }
+}
+
 /// One level's flyaway lists and their BRDF table.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Flyaways {
@@ -184,6 +224,9 @@ pub struct Flyaways {
     /// One second group of axes per node (in `nodes`' order; format 1.8, the optional
     /// `FLYAWAY_GROUP` section), only with `spreads`; `None`: one group per node.
     pub groups: Option<Vec<PackedAxisGroup>>,
+    /// The gain on the opacity exponent by the ray's polar angle (format 1.9, the
+    /// optional `FLYAWAY_PATH_GAIN` section); `None`: 1 at every angle.
+    pub path_gain: Option<PathGain>,
 }
 
 impl FlyawayInput {
@@ -219,7 +262,7 @@ impl Flyaways {
                 }
             }
         }
-        Ok(Flyaways { heads, nodes, table, spreads: None, groups: None })
+        Ok(Flyaways { heads, nodes, table, spreads: None, groups: None, path_gain: None })
     }
 
     /// The list of texel `index` (= j·width + i), top down. Stops after `nodes.len()`
@@ -273,6 +316,15 @@ impl Flyaways {
         if let Some(node) = seen.iter().position(|s| !s) {
             return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
         }
+        if let Some(gain) = &self.path_gain {
+            if level == 0 {
+                // Level 0 is what the gains are fitted to: its Beer's law is the truth's.
+                return Err(ModelError::PathGain { level, why: "level 0 may not have one (only coarse levels do)".into() });
+            }
+            if let Some((node, g)) = gain.invalid() {
+                return Err(ModelError::PathGain { level, why: format!("{g} at {}° is outside [{}, {}]", node as f32 * PATH_GAIN_STEP_DEGREES, PATH_GAIN_RANGE[0], PATH_GAIN_RANGE[1]) });
+            }
+        }
         if self.groups.is_some() && self.spreads.is_none() {
             // The second group is the rest of a node whose record gives the first.
             return Err(ModelError::Length { what: "flyaway spread records (axis groups need them)", level, expected: len as u64, got: 0 });
@@ -306,7 +358,8 @@ impl Flyaways {
         let groups = self.groups.as_ref().map_or(0, |g| g.len() * size_of::<PackedAxisGroup>()) as u64;
         let spreads = self.spreads.as_ref().map_or(0, |s| s.len() * if super::compact::compact_spreads(s).is_some() { size_of::<super::compact::CompactAxisSpread>() } else { size_of::<PackedAxisSpread>() });
         let node = if super::compact::compact_flyaway_nodes(self).is_some() { size_of::<super::compact::CompactFlyawayNode>() } else { size_of::<FlyawayNode>() };
-        (self.heads.len() * 4 + self.nodes.len() * node + spreads) as u64 + groups + self.table.byte_size()
+        let gain = self.path_gain.map_or(0, |_| size_of::<PathGain>()) as u64;
+        (self.heads.len() * 4 + self.nodes.len() * node + spreads) as u64 + groups + gain + self.table.byte_size()
     }
 
     /// The node at `index` and its axes (one axis, weight 1, where the level has no
@@ -357,6 +410,31 @@ impl<'a> Iterator for FlyawayList<'a> {
 
 #[cfg(test)]
 mod tests {
+    use crate::hybrid::{PATH_GAIN_NODES, PathGain};
+
+    #[test]
+    fn the_path_gain_is_linear_in_the_polar_angle_and_constant_past_80() {
+        let g = PathGain(std::array::from_fn::<f32, PATH_GAIN_NODES, _>(|k| 1.0 + 0.1 * k as f32 + 0.02 * (k * k) as f32));
+        let at = |theta: f32, down: bool| g.at(crate::scene::direction_from_angles(theta, 37.0) * if down { -1.0 } else { 1.0 });
+        for k in 0..PATH_GAIN_NODES {
+            let theta = 10.0 * k as f32;
+            assert!((at(theta, true) - g.0[k]).abs() < 1e-4, "node {k}: {} vs {}", at(theta, true), g.0[k]);
+            // The sign of d.z does not matter.
+            assert!((at(theta, false) - at(theta, true)).abs() < 1e-6);
+        }
+        // Halfway between nodes 3 and 4 (35°), and past the last node.
+        assert!((at(35.0, true) - 0.5 * (g.0[3] + g.0[4])).abs() < 1e-4);
+        assert!((at(86.0, true) - g.0[8]).abs() < 1e-6 && (at(90.0, true) - g.0[8]).abs() < 1e-6);
+        assert_eq!(PathGain::ONE.at(glam::Vec3::new(0.3, 0.4, -0.5).normalize()), 1.0);
+        // The stored range: NaN and the ends' outsides are refused.
+        assert_eq!(g.invalid(), None);
+        for (bad, node) in [(f32::NAN, 2), (0.2, 0), (4.5, 8)] {
+            let mut b = g;
+            b.0[node] = bad;
+            assert_eq!(b.invalid().map(|(k, _)| k), Some(node));
+        }
+    }
+
     use super::*;
     use crate::brdf::{ClothLobe, ClothParams};
 

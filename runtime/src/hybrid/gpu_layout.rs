@@ -52,7 +52,7 @@ pub const GPU_SURFACE_CLUSTERED: u32 = 0;
 /// [`GpuLevel::surface`]: per texel a header whose lobes have their own frames.
 pub const GPU_SURFACE_PER_TEXEL: u32 = 1;
 
-/// Where one level's data sits in the arrays. 64 bytes.
+/// Where one level's data sits in the arrays. 104 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLevel {
@@ -86,6 +86,10 @@ pub struct GpuLevel {
     /// record's two, then its axis group's), as a word index into binding 6 (the records follow all levels' nodes), or [`crate::hybrid::NO_NODE`]
     /// where the level has none.
     pub spread_base: u32,
+    /// The flyaways' gain on the opacity exponent at polar 0°, 10°, … 80° (format 1.9;
+    /// all 1 where the level has none: [`crate::hybrid::PathGain`]).
+    pub fly_gain: [f32; crate::hybrid::PATH_GAIN_NODES],
+    pub pad: u32,
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -99,7 +103,7 @@ pub struct GpuQuadLevel {
     pub pad: u32,
 }
 
-/// The model's header: the tile, the flags, and where each level is. 1376 bytes.
+/// The model's header: the tile, the flags, and where each level is. 2016 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuModelHeader {
@@ -123,9 +127,9 @@ pub struct GpuModelHeader {
     pub quad: [GpuQuadLevel; GPU_MAX_QUAD_LEVELS],
 }
 
-const _: () = assert!(size_of::<GpuLevel>() == 64);
+const _: () = assert!(size_of::<GpuLevel>() == 104);
 const _: () = assert!(size_of::<GpuQuadLevel>() == 16);
-const _: () = assert!(size_of::<GpuModelHeader>() == 1376);
+const _: () = assert!(size_of::<GpuModelHeader>() == 2016);
 
 /// A model laid out for the GPU: every array as it is uploaded.
 #[derive(Clone, Debug)]
@@ -199,7 +203,8 @@ impl GpuModel {
             view_tilts: Vec::new(),
         };
         for (k, l) in model.levels.iter().enumerate() {
-            let mut g = GpuLevel { dims: [l.width, l.height], header_base: out.headers.len() as u32, lobe_base: out.lobes.len() as u32, ..Default::default() };
+            let gain = l.flyaways.as_ref().and_then(|f| f.path_gain).unwrap_or(crate::hybrid::PathGain::ONE);
+            let mut g = GpuLevel { dims: [l.width, l.height], header_base: out.headers.len() as u32, lobe_base: out.lobes.len() as u32, fly_gain: gain.0, ..Default::default() };
             match &l.surface {
                 Surface::Clustered { texels, table } => {
                     g.surface = GPU_SURFACE_CLUSTERED;

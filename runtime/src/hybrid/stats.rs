@@ -69,6 +69,8 @@ pub struct LevelStats {
     pub flyaway_longest_list: usize,
     pub flyaway_alpha: Range,
     pub flyaway_bytes: u64,
+    /// The flyaways' path gain at polar 0°, 10°, … 80° (format 1.9; None: Beer's law).
+    pub flyaway_path_gain: Option<Vec<f32>>,
     /// Bytes of the transmission records (0: the level is reflection only).
     pub transmission_bytes: u64,
     /// Bytes of the view tilt records (0: none, as at level 0).
@@ -182,6 +184,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.flyaway_longest_list = (0..f.heads.len()).map(|t| f.list(t).count()).max().unwrap_or(0);
             st.flyaway_alpha = alpha.range();
             st.flyaway_bytes = f.byte_size();
+            st.flyaway_path_gain = f.path_gain.map(|g| g.0.to_vec());
         }
         st.resolution = format!("{}x{}", st.width, st.height);
         st.mean_lobes = st.lobes_per_texel.mean;

@@ -81,6 +81,9 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
         if l.flyaway_nodes > 0 || l.flyaway_bytes > 0 {
             let _ = writeln!(s, "    flyaways: {} voxels in {} columns, longest list {}, alpha {}; {}", l.flyaway_nodes, l.flyaway_columns, l.flyaway_longest_list, range(&l.flyaway_alpha), mib(l.flyaway_bytes));
         }
+        if let Some(g) = &l.flyaway_path_gain {
+            let _ = writeln!(s, "    flyaway path gain (opacity exponent at 0°, 10°, … 80°): {}", g.iter().map(|g| format!("{g:.2}")).collect::<Vec<_>>().join(" "));
+        }
     }
     let _ = writeln!(s, "\npayload: {} (height field {})", mib(m.payload_bytes), mib(m.height_bytes));
     s

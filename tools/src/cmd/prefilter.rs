@@ -52,6 +52,12 @@ pub struct PrefilterArgs {
     /// baker/PREFILTER_MEASUREMENTS.md, "What the coarse flyaways get wrong").
     #[arg(long)]
     pub no_flyaway_groups: bool,
+    /// Cross coarse flyaway voxels by Beer's law from their α alone, rather than with
+    /// the path gain by polar angle that matches level 0's mean transmittance (format
+    /// 1.9's FLYAWAY_PATH_GAIN; baker/PREFILTER_MEASUREMENTS.md, "The coarse flyaways'
+    /// opacity by angle").
+    #[arg(long)]
+    pub no_path_gain: bool,
     /// Keep the coarse levels at level 0's precision (f16 colours, 16-bit frames and
     /// tilts) instead of format 1.7's compact records (baker/PREFILTER_MEASUREMENTS.md,
     /// "Compact coarse records", measures both).
@@ -75,7 +81,7 @@ impl PrefilterArgs {
         if !(4..=4096).contains(&self.prefilter_pairs) {
             bail!("--prefilter-pairs {}: must be in 4..=4096", self.prefilter_pairs);
         }
-        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, flyaway_groups: !self.no_flyaway_groups, compact: !self.full_precision, free_frames: !self.moment_frames, seed, ..Default::default() })
+        Ok(PrefilterOptions { tolerance: self.prefilter_tolerance, max_lobes: self.prefilter_max_lobes, pairs: self.prefilter_pairs, levels: self.levels, flyaways, masking: self.masking, coverage: if self.coverage == "volume" { fabric_baker::prefilter::flyaways::Coverage::Volume } else { fabric_baker::prefilter::flyaways::Coverage::Projected }, light_visibility: self.light_visibility, view_tilt: !self.no_view_tilt, flyaway_spread: !self.no_flyaway_spread, flyaway_groups: !self.no_flyaway_groups, path_gain: !self.no_path_gain, compact: !self.full_precision, free_frames: !self.moment_frames, seed, ..Default::default() })
     }
 }
 
@@ -161,6 +167,20 @@ pub fn print_report(r: &PrefilterReport) {
     let groups: Vec<String> = r.levels.iter().filter(|l| l.flyaway_two_groups > 0).map(|l| format!("{} {}/{}", l.level, l.flyaway_two_groups, l.flyaway_nodes)).collect();
     if !groups.is_empty() {
         println!("  flyaway nodes in two groups of fibre axes per level: {}; 4 bytes per node", groups.join(", "));
+    }
+    // The gain at 0°, 40° and 70°, with the ungained level's mean transmittance over
+    // level 0's at those angles (what the gain corrects).
+    let gains: Vec<String> = r
+        .levels
+        .iter()
+        .filter_map(|l| {
+            let (g, t0, t) = (l.flyaway_path_gain.as_ref()?, l.flyaway_transmittance_level0.as_ref()?, l.flyaway_transmittance_ungained.as_ref()?);
+            let ratio = |k: usize| if t0[k] > 0.0 { t[k] / t0[k] } else { 1.0 };
+            Some(format!("{} {:.2}/{:.2}/{:.2} (T {:.2}/{:.2}/{:.2})", l.level, g[0], g[4], g[7], ratio(0), ratio(4), ratio(7)))
+        })
+        .collect();
+    if !gains.is_empty() {
+        println!("  flyaway path gain at 0°/40°/70° per level (ungained transmittance over level 0's): {}; {:.1} s", gains.join(", "), r.path_gain_seconds);
     }
     let trans: Vec<String> = r.levels.iter().filter_map(|l| l.transmission_fit_error.map(|e| format!("{} {:.2}%", l.level, 100.0 * e))).collect();
     if !trans.is_empty() {

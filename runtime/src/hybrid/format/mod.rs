@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 8;
+pub const VERSION_MINOR: u16 = 9;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -93,6 +93,9 @@ pub enum SectionKind {
     /// Per coarse level with spread records, optional (1.8): each node's second group of
     /// fibre axes (4 bytes per node).
     FlyawayGroup = 39,
+    /// Per coarse level with flyaways, optional (1.9): the gain on the opacity exponent
+    /// by polar angle (nine f32, 36 bytes).
+    FlyawayPathGain = 40,
     /// Per level, optional (1.3): the transmission term per texel (24 bytes each).
     Transmission = 48,
     /// Per coarse level, optional (1.4): the view tilt per texel (12 bytes each).
@@ -102,7 +105,7 @@ pub enum SectionKind {
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 19] = [
+    pub const ALL: [SectionKind; 20] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -119,6 +122,7 @@ impl SectionKind {
         SectionKind::FlyawaySpreadCompact,
         SectionKind::FlyawayNodesCompact,
         SectionKind::FlyawayGroup,
+        SectionKind::FlyawayPathGain,
         SectionKind::Transmission,
         SectionKind::ViewTilt,
         SectionKind::ViewTiltCompact,
@@ -149,6 +153,7 @@ impl SectionKind {
             SectionKind::FlyawaySpreadCompact => "FLYAWAY_SPREAD_COMPACT",
             SectionKind::FlyawayNodesCompact => "FLYAWAY_NODES_COMPACT",
             SectionKind::FlyawayGroup => "FLYAWAY_GROUP",
+            SectionKind::FlyawayPathGain => "FLYAWAY_PATH_GAIN",
             SectionKind::Transmission => "TRANSMISSION",
             SectionKind::ViewTilt => "VIEW_TILT",
             SectionKind::SurfaceTexelsCompact => "SURFACE_TEXELS_COMPACT",

@@ -17,7 +17,7 @@ use crate::brdf::{BrdfReading, DiffuseLaw};
 use crate::hybrid::model::{MAX_DIM, max_levels};
 use crate::hybrid::stats::{ModelStats, model_stats};
 use crate::hybrid::compact::{self, CompactError};
-use crate::hybrid::{BakeMetadata, BrdfTable, Flyaways, HeightField, HybridModel, Level, Surface, Tile, level_dims};
+use crate::hybrid::{BakeMetadata, BrdfTable, Flyaways, HeightField, HybridModel, Level, PATH_GAIN_NODES, PathGain, Surface, Tile, level_dims};
 use crate::scene::Aabb;
 
 /// One section of a file, as `fabric inspect` lists it.
@@ -308,7 +308,7 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         };
         let flyaways = match s.get(SectionKind::FlyawayHeads, l) {
             None => {
-                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, SectionKind::FlyawayGroup] {
+                for kind in [SectionKind::FlyawayNodes, SectionKind::FlyawayNodesCompact, SectionKind::FlyawayHeaders, SectionKind::FlyawayLobes, SectionKind::FlyawaySpread, SectionKind::FlyawaySpreadCompact, SectionKind::FlyawayGroup, SectionKind::FlyawayPathGain] {
                     if let Some((index, _)) = s.get(kind, l) {
                         return Err(FormatError::Section { index, kind: kind.name().into(), level: l, why: "present without FLYAWAY_HEADS".into() });
                     }
@@ -327,7 +327,15 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
                     Some(_) => Some(s.array(SectionKind::FlyawayGroup, l)?),
                     None => None,
                 };
-                Some(Flyaways { heads, nodes, table, spreads, groups })
+                let path_gain = match s.get(SectionKind::FlyawayPathGain, l) {
+                    Some((index, _)) => {
+                        let gains: Vec<f32> = s.array(SectionKind::FlyawayPathGain, l)?;
+                        let gains: [f32; PATH_GAIN_NODES] = gains.try_into().map_err(|g: Vec<f32>| FormatError::Section { index, kind: SectionKind::FlyawayPathGain.name().into(), level: l, why: format!("{} gains; expected {PATH_GAIN_NODES}", g.len()) })?;
+                        Some(PathGain(gains))
+                    }
+                    None => None,
+                };
+                Some(Flyaways { heads, nodes, table, spreads, groups, path_gain })
             }
         };
         let transmission = match s.get(SectionKind::Transmission, l) {

@@ -90,6 +90,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
             if let Some(groups) = &f.groups {
                 out.push((SectionKind::FlyawayGroup, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(groups))));
             }
+            // Optional: a 1.8 reader skips it and crosses coarse nodes by Beer's law from α.
+            if let Some(gain) = &f.path_gain {
+                out.push((SectionKind::FlyawayPathGain, SECTION_OPTIONAL, level, bytes(bytemuck::bytes_of(gain))));
+            }
         }
         // Optional: a 1.2 reader skips it and renders the reflection alone.
         if let Some(t) = &l.transmission {

@@ -1,0 +1,183 @@
+//! The coarse flyaways' path gain (format 1.9; runtime/HYBRID_FORMAT.md §7.3): per
+//! coarse level, the gain g(θ) on the opacity exponent, 1 − (1 − α)^(g·ℓ/s), at the
+//! polar angles θ = 0°, 10°, … 80° of [`PathGain`].
+//!
+//! Why: a coarse voxel's α is what its fibres hide seen from above (§7), and Beer's law
+//! carries it to slanted rays as if the fibres were a random medium. They are not —
+//! mostly flat-lying, clumped, reaching below the surface where rays stop — so at a
+//! slant the coarse levels let 5–20% too much light through (and, from above, a few
+//! percent too little), and a distant pixel shows the surface behind them too brightly
+//! (baker/PREFILTER_MEASUREMENTS.md, "The coarse flyaways' opacity by angle").
+//!
+//! The fit: for each node angle θ_k, [`GAIN_AZIMUTHS`] azimuths, rays leave the top
+//! plane at jittered points of a [`GAIN_RAYS`]² grid over the tile toward −ω, meet the
+//! height field (the same for every level), and march each level's flyaways between:
+//! T_r^ℓ, ray r's transmittance at level ℓ with no gain. Since the gain multiplies
+//! every node's exponent on the ray, the ray's transmittance with gain g is (T_r^ℓ)^g,
+//! so g_ℓ(θ_k) solves mean_r (T_r^ℓ)^g = mean_r T_r^0 — a monotone equation in one
+//! unknown, solved by bisection within [`PATH_GAIN_RANGE`]. A level whose flyaways no
+//! ray meets keeps g = 1.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use fabric_runtime::cpu::flyaways::{FlyawayGrid, visit_flyaways};
+use fabric_runtime::cpu::heightfield::{HeightTracer, HfTrace};
+use fabric_runtime::hybrid::flyaway::{PATH_GAIN_RANGE, PATH_GAIN_STEP_DEGREES};
+use fabric_runtime::hybrid::{HybridModel, PATH_GAIN_NODES, PathGain};
+use fabric_runtime::scene::{Ray, direction_from_angles};
+
+use crate::reference::rng::Rng;
+
+/// Azimuths per node angle (offset by half a step from the tile's axes, so that no ray
+/// runs along a column line).
+pub const GAIN_AZIMUTHS: usize = 8;
+/// Rays per tile axis and direction (a jittered grid; fewer on a smaller tile: one per
+/// level-0 texel).
+pub const GAIN_RAYS: u32 = 128;
+/// Height-field steps per ray.
+const STEPS: u32 = 4096;
+/// Column budget of a march (far more than a ray crosses at 80°).
+const COLUMNS: u32 = 1 << 16;
+
+/// What the fit found for one coarse level: the gains and, per node angle, the mean
+/// transmittance of level 0 and of the level before the gain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelGain {
+    pub gain: PathGain,
+    pub level0_transmittance: [f64; PATH_GAIN_NODES],
+    pub level_transmittance: [f64; PATH_GAIN_NODES],
+}
+
+/// The path gains of levels 1..`model.levels.len()` (index 0 of the result is level 1);
+/// `None` for a level without flyaways. The model's own gains, if any, are ignored.
+pub fn fit_path_gains(model: &HybridModel, periodic: bool, seed: u64) -> Vec<Option<LevelGain>> {
+    let levels = model.levels.len();
+    let with_flyaways: Vec<bool> = model.levels.iter().map(|l| l.flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty())).collect();
+    if levels < 2 || !with_flyaways[0] && !with_flyaways[1..].iter().any(|&f| f) {
+        return vec![None; levels.saturating_sub(1)];
+    }
+    // Each level's marches without its gain (a model re-prefiltered may carry old ones).
+    let mut bare = model.clone();
+    for f in bare.levels.iter_mut().filter_map(|l| l.flyaways.as_mut()) {
+        f.path_gain = None;
+    }
+    let grids: Vec<FlyawayGrid> = (0..levels).map(|l| FlyawayGrid::new(&bare, l, periodic)).collect();
+    let tracer = HeightTracer::new(&bare, periodic);
+    let (w0, h0) = (bare.width(), bare.height_px());
+    let (rx, ry) = (w0.min(GAIN_RAYS), h0.min(GAIN_RAYS));
+    let size = bare.tile.size;
+    let (origin, top) = (bare.tile.origin, bare.tile.top_z);
+    // transmittances[k][level]: every ray's, over all azimuths.
+    let transmittances: Vec<Vec<Vec<f32>>> = (0..PATH_GAIN_NODES)
+        .map(|k| {
+            let polar = k as f32 * PATH_GAIN_STEP_DEGREES;
+            let mut per_level = vec![Vec::with_capacity((GAIN_AZIMUTHS as u32 * rx * ry) as usize); levels];
+            for a in 0..GAIN_AZIMUTHS {
+                let azimuth = (a as f32 + 0.5) * 360.0 / GAIN_AZIMUTHS as f32;
+                let wo: Vec3 = direction_from_angles(polar, azimuth);
+                let stream = (k * GAIN_AZIMUTHS + a) as u64;
+                // Row by row in parallel, gathered in row order: the same numbers on any
+                // number of threads.
+                let rows: Vec<Vec<Vec<f32>>> = (0..ry)
+                    .into_par_iter()
+                    .map(|j| {
+                        let mut out = vec![Vec::with_capacity(rx as usize); levels];
+                        for i in 0..rx {
+                            let mut rng = Rng::new(seed, stream, (j * rx + i) as u64);
+                            let (u, v) = rng.next_2d();
+                            let start = origin + Vec2::new((i as f32 + u) / rx as f32, (j as f32 + v) / ry as f32) * size;
+                            let ray = Ray::new(start.extend(top), -wo);
+                            let mut steps = 0;
+                            let HfTrace::Hit(t_end) = tracer.trace(&ray, 0.0, f32::MAX, 0.0, STEPS, &mut steps) else {
+                                continue;
+                            };
+                            for (level, column) in out.iter_mut().enumerate() {
+                                let t = if with_flyaways[level] { visit_flyaways(bare.levels[level].flyaways.as_ref().unwrap(), &grids[level], &ray, 0.0, t_end, COLUMNS, |_, _, _, _| {}).transmittance } else { 1.0 };
+                                column.push(t);
+                            }
+                        }
+                        out
+                    })
+                    .collect();
+                for row in rows {
+                    for (all, mut r) in per_level.iter_mut().zip(row) {
+                        all.append(&mut r);
+                    }
+                }
+            }
+            per_level
+        })
+        .collect();
+    (1..levels)
+        .map(|level| {
+            if !with_flyaways[level] {
+                return None;
+            }
+            let mut gain = PathGain::ONE;
+            let mut level0_transmittance = [1.0; PATH_GAIN_NODES];
+            let mut level_transmittance = [1.0; PATH_GAIN_NODES];
+            for k in 0..PATH_GAIN_NODES {
+                let t0 = &transmittances[k][0];
+                let tl = &transmittances[k][level];
+                let target = mean(t0.iter().map(|&t| t as f64));
+                level0_transmittance[k] = target;
+                level_transmittance[k] = mean(tl.iter().map(|&t| t as f64));
+                gain.0[k] = solve_gain(tl, target);
+            }
+            Some(LevelGain { gain, level0_transmittance, level_transmittance })
+        })
+        .collect()
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 { 1.0 } else { sum / n as f64 }
+}
+
+/// The g in [`PATH_GAIN_RANGE`] with mean (t_r)^g = `target` (its nearest end where
+/// none does); 1 where the rays cross nothing or already match.
+pub fn solve_gain(transmittances: &[f32], target: f64) -> f32 {
+    let at = |g: f64| mean(transmittances.iter().map(|&t| if t <= 0.0 { 0.0 } else { (t as f64).powf(g) }));
+    let now = at(1.0);
+    if transmittances.is_empty() || now >= 1.0 - 1e-9 || (now - target).abs() <= 1e-6 {
+        return 1.0;
+    }
+    let (mut lo, mut hi) = (PATH_GAIN_RANGE[0] as f64, PATH_GAIN_RANGE[1] as f64);
+    if at(lo) <= target {
+        return lo as f32;
+    }
+    if at(hi) >= target {
+        return hi as f32;
+    }
+    // at() falls as g grows.
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if at(mid) > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (0.5 * (lo + hi)) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_gain_solves_for_the_mean_transmittance() {
+        let t = [0.2f32, 0.5, 0.9, 1.0, 0.0];
+        for g in [0.5f64, 0.8, 1.0, 1.3, 2.5] {
+            let target = t.iter().map(|&x| if x <= 0.0 { 0.0 } else { (x as f64).powf(g) }).sum::<f64>() / t.len() as f64;
+            let got = solve_gain(&t, target);
+            assert!((got as f64 - g).abs() < 1e-4, "g {g}: solved {got}");
+        }
+        // Out of reach: the range's ends; nothing crossed: 1.
+        assert_eq!(solve_gain(&t, 0.99), PATH_GAIN_RANGE[0]);
+        assert_eq!(solve_gain(&t, 0.01), PATH_GAIN_RANGE[1]);
+        assert_eq!(solve_gain(&[1.0, 1.0], 0.5), 1.0);
+        assert_eq!(solve_gain(&[], 0.5), 1.0);
+    }
+}
