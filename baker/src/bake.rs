@@ -41,6 +41,9 @@ use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
 use crate::reference::rng::mix64;
+use crate::prefilter::path_gain::fit_level0_gain;
+use crate::reference::medium::MediumOptions;
+use crate::reference::tracking::TracedMedium;
 use crate::reference::{Lookup, MeasureScene, ReferenceError};
 use crate::volume::FabricVolume;
 
@@ -119,13 +122,17 @@ pub struct FlyawayOptions {
     /// Samples per texel of the full-volume training renderings.
     pub spp: u32,
     pub alpha: FlyawayAlpha,
+    /// Fit level 0's path gain against the volume (format 1.9,
+    /// [`crate::prefilter::path_gain::fit_level0_gain`]): the model's flyaway voxels let
+    /// through what the volume's do, on average, at every polar angle.
+    pub path_gain: bool,
 }
 
 impl Default for FlyawayOptions {
     fn default() -> Self {
         // Density coverage measured better on twill 128×128×32: held-out 28.3% over 4×4
         // blocks against 29.8% with opaque voxels (30.6% with no flyaways).
-        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density }
+        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: std::env::var("FABRIC_L0_GAIN").is_ok() }
     }
 }
 
@@ -677,6 +684,28 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let (assignment, kf) = flyaway_clusters(&geometry.flyaways, fo.clusters, options.seed);
         let solid = geometry.density.solid;
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &vec![shape; kf], fo.alpha)?);
+        let level0_gain = if fo.path_gain {
+            let bar = begin_stage(progress, "flyaways: path gain", 1);
+            // The medium of the flyaway voxels alone: every other voxel removed.
+            let [nx, ny, nz] = volume.dims();
+            let mut others = vec![true; nx * ny * nz];
+            let f = model.levels[0].flyaways.as_ref().expect("level 0's flyaways, just set");
+            for index in 0..f.heads.len() {
+                let (i, j) = (index % nx, index / nx);
+                for node in f.list(index) {
+                    others[((nz - 1 - node.depth as usize) * ny + j) * nx + i] = false;
+                }
+            }
+            let alone = TracedMedium::new(volume, MediumOptions { lookup: options.lookup, periodic: true, mask: Some(&others), ..Default::default() })?;
+            let g = fit_level0_gain(&model, &alone, mix64(options.seed ^ 0x9a17));
+            bar.finish();
+            if let (Some(g), Some(f)) = (&g, model.levels[0].flyaways.as_mut()) {
+                f.path_gain = Some(g.gain);
+            }
+            g
+        } else {
+            None
+        };
         let full = MeasureScene::new(volume, options.lookup, Some(&heights), None)?;
         let bar = begin_stage(progress, "flyaways: training renderings", pairs.len() as u64);
         let full_training = render_training(&full, &pairs, fo.spp.max(2), mix64(options.seed ^ 0x666c79), &|| bar.advance(1))?;
@@ -686,6 +715,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         bar.finish();
         rep.voxels = geometry.flyaways.len();
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
+        if let (Some(g), Some(f)) = (&level0_gain, model.levels[0].flyaways.as_mut()) {
+            f.path_gain = Some(g.gain);
+            rep.path_gain = Some(g.gain.0.to_vec());
+            rep.transmittance_volume = Some(g.level0_transmittance.to_vec());
+            rep.transmittance_ungained = Some(g.level_transmittance.to_vec());
+        }
         stage("flyaways", t);
         flyaway_report = Some(rep);
     }

@@ -392,7 +392,6 @@ fn flyaway_path_gains_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     for (e, data) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::FlyawayPathGain as u32) {
         assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
         assert_eq!(data.len(), 36);
-        assert!(e.level >= 1);
         e.kind = 4004;
         skipped += 1;
     }
@@ -410,7 +409,10 @@ fn flyaway_path_gain_corruption_catalogue() {
         ("one gain short", |p| { let t = p.find(SectionKind::FlyawayPathGain, 1); t.truncate(t.len() - 4) }, |e| matches!(e, FormatError::Section { kind, why, .. } if kind == "FLYAWAY_PATH_GAIN" && why.contains("8 gains"))),
         ("one gain too many", |p| p.find(SectionKind::FlyawayPathGain, 1).extend_from_slice(&1f32.to_le_bytes()), |e| matches!(e, FormatError::Section { kind, why, .. } if kind == "FLYAWAY_PATH_GAIN" && why.contains("10 gains"))),
         ("not whole records", |p| p.find(SectionKind::FlyawayPathGain, 1).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "FLYAWAY_PATH_GAIN")),
-        ("on level 0", |p| p.entry(SectionKind::FlyawayPathGain, 1).level = 0, |e| matches!(e, FormatError::Invalid(ModelError::PathGain { level: 0, .. }))),
+        ("twice for one level", |p| {
+            let (e, data) = p.sections.iter().find(|(e, _)| e.kind == SectionKind::FlyawayPathGain as u32 && e.level == 1).cloned().unwrap();
+            p.sections.push((e, data));
+        }, |e| matches!(e, FormatError::Duplicate { kind: "FLYAWAY_PATH_GAIN", .. })),
         ("on a level without flyaways", |p| p.entry(SectionKind::FlyawayPathGain, 1).level = 2, |e| matches!(e, FormatError::Section { level: 2, why, .. } if why.contains("without FLYAWAY_HEADS"))),
     ];
     run_catalogue(&format::to_bytes(&gain_sample()).unwrap(), cases);

@@ -53,6 +53,12 @@ pub struct FlyawayReport {
     pub error_without: f64,
     pub error_fitted: f64,
     pub problem: Option<String>,
+    /// Level 0's path gain at polar 0°, 10°, … 80° (format 1.9; None: not fitted), with
+    /// the mean transmittance of the volume's flyaway voxels alone and of the model's
+    /// without the gain at those angles (what the gain matches).
+    pub path_gain: Option<Vec<f32>>,
+    pub transmittance_volume: Option<Vec<f64>>,
+    pub transmittance_ungained: Option<Vec<f64>>,
 }
 
 /// Cluster of each flyaway voxel (k-means on the fiber axis tensor and the diameter),
@@ -196,7 +202,7 @@ pub fn fit_flyaways(
             .collect();
         rows.extend(batch);
     }
-    let mut report = FlyawayReport { voxels: 0, clusters, pixels: rows.len(), error_without: 0.0, error_fitted: 0.0, problem: None };
+    let mut report = FlyawayReport { voxels: 0, clusters, pixels: rows.len(), error_without: 0.0, error_fitted: 0.0, problem: None, path_gain: None, transmittance_volume: None, transmittance_ungained: None };
     let zero = vec![*shape; clusters];
     if rows.is_empty() || clusters == 0 {
         report.problem = Some("no training ray crosses a flyaway voxel".into());

@@ -28,6 +28,7 @@ use fabric_runtime::hybrid::{HybridModel, PATH_GAIN_NODES, PathGain};
 use fabric_runtime::scene::{Ray, direction_from_angles};
 
 use crate::reference::rng::Rng;
+use crate::reference::tracking::{GridRay, TracedMedium};
 
 /// Azimuths per node angle (offset by half a step from the tile's axes, so that no ray
 /// runs along a column line).
@@ -49,64 +50,97 @@ pub struct LevelGain {
     pub level_transmittance: [f64; PATH_GAIN_NODES],
 }
 
+/// The fit's rays at node angle `k`: every azimuth's jittered grid over the tile, each
+/// from the top plane to where it meets the height field, calling `each(ray, t_end)` in
+/// parallel per row; the results in a fixed order (the same on any number of threads).
+fn trace_rays<T: Send>(model: &HybridModel, periodic: bool, seed: u64, k: usize, each: &(dyn Fn(&Ray, f32, &mut Rng) -> T + Sync)) -> Vec<T> {
+    let tracer = HeightTracer::new(model, periodic);
+    let (w0, h0) = (model.width(), model.height_px());
+    let (rx, ry) = (w0.min(GAIN_RAYS), h0.min(GAIN_RAYS));
+    let size = model.tile.size;
+    let (origin, top) = (model.tile.origin, model.tile.top_z);
+    let polar = k as f32 * PATH_GAIN_STEP_DEGREES;
+    let mut all = Vec::with_capacity((GAIN_AZIMUTHS as u32 * rx * ry) as usize);
+    for a in 0..GAIN_AZIMUTHS {
+        let azimuth = (a as f32 + 0.5) * 360.0 / GAIN_AZIMUTHS as f32;
+        let wo: Vec3 = direction_from_angles(polar, azimuth);
+        let stream = (k * GAIN_AZIMUTHS + a) as u64;
+        let rows: Vec<Vec<T>> = (0..ry)
+            .into_par_iter()
+            .map(|j| {
+                let mut out = Vec::with_capacity(rx as usize);
+                for i in 0..rx {
+                    let mut rng = Rng::new(seed, stream, (j * rx + i) as u64);
+                    let (u, v) = rng.next_2d();
+                    let start = origin + Vec2::new((i as f32 + u) / rx as f32, (j as f32 + v) / ry as f32) * size;
+                    let ray = Ray::new(start.extend(top), -wo);
+                    let mut steps = 0;
+                    if let HfTrace::Hit(t_end) = tracer.trace(&ray, 0.0, f32::MAX, 0.0, STEPS, &mut steps) {
+                        out.push(each(&ray, t_end, &mut rng));
+                    }
+                }
+                out
+            })
+            .collect();
+        all.extend(rows.into_iter().flatten());
+    }
+    all
+}
+
+/// Level 0's path gain against the volume it was baked from: g(θ_k) such that the mean
+/// transmittance of the model's level-0 flyaway voxels matches the reference medium's
+/// through the same voxels alone (`flyaways_only`: the medium with every other voxel
+/// removed; ratio tracking, SGGX projected areas) along the same segments, top plane to
+/// the model's surface. Level 0's α = ρ/ρ_solid crossed by Beer's law is isotropic; the
+/// medium's fibres, mostly flat-lying, block less at a slant (their projected area
+/// falls as a ray turns along them). Returns None where level 0 has no flyaways.
+pub fn fit_level0_gain(model: &HybridModel, flyaways_only: &TracedMedium<'_>, seed: u64) -> Option<LevelGain> {
+    let mut bare = model.clone();
+    let f = bare.levels[0].flyaways.as_mut().filter(|f| !f.nodes.is_empty())?;
+    f.path_gain = None;
+    let f = bare.levels[0].flyaways.as_ref().unwrap();
+    let grid = FlyawayGrid::new(&bare, 0, true);
+    let mut gain = PathGain::ONE;
+    let mut level0_transmittance = [1.0; PATH_GAIN_NODES];
+    let mut level_transmittance = [1.0; PATH_GAIN_NODES];
+    for k in 0..PATH_GAIN_NODES {
+        let pairs: Vec<(f32, f32)> = trace_rays(&bare, true, seed, k, &|ray, t_end, rng| {
+            let model_t = visit_flyaways(f, &grid, ray, 0.0, t_end, COLUMNS, |_, _, _, _| {}).transmittance;
+            let g = GridRay::new(&flyaways_only.medium, ray.o, ray.d);
+            (model_t, flyaways_only.transmittance(&g, 0.0, t_end, rng).0)
+        });
+        let model_t: Vec<f32> = pairs.iter().map(|p| p.0).collect();
+        let target = mean(pairs.iter().map(|p| p.1 as f64));
+        level0_transmittance[k] = target;
+        level_transmittance[k] = mean(model_t.iter().map(|&t| t as f64));
+        gain.0[k] = solve_gain(&model_t, target);
+    }
+    Some(LevelGain { gain, level0_transmittance, level_transmittance })
+}
+
 /// The path gains of levels 1..`model.levels.len()` (index 0 of the result is level 1);
-/// `None` for a level without flyaways. The model's own gains, if any, are ignored.
+/// `None` for a level without flyaways. The coarse levels' own gains, if any, are
+/// ignored; level 0's (fitted against the volume, [`fit_level0_gain`]) is kept: it is
+/// part of the transmittance they match.
 pub fn fit_path_gains(model: &HybridModel, periodic: bool, seed: u64) -> Vec<Option<LevelGain>> {
     let levels = model.levels.len();
     let with_flyaways: Vec<bool> = model.levels.iter().map(|l| l.flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty())).collect();
     if levels < 2 || !with_flyaways[0] && !with_flyaways[1..].iter().any(|&f| f) {
         return vec![None; levels.saturating_sub(1)];
     }
-    // Each level's marches without its gain (a model re-prefiltered may carry old ones).
+    // Each coarse level's marches without its gain (a model re-prefiltered may carry old ones).
     let mut bare = model.clone();
-    for f in bare.levels.iter_mut().filter_map(|l| l.flyaways.as_mut()) {
+    for f in bare.levels.iter_mut().skip(1).filter_map(|l| l.flyaways.as_mut()) {
         f.path_gain = None;
     }
     let grids: Vec<FlyawayGrid> = (0..levels).map(|l| FlyawayGrid::new(&bare, l, periodic)).collect();
-    let tracer = HeightTracer::new(&bare, periodic);
-    let (w0, h0) = (bare.width(), bare.height_px());
-    let (rx, ry) = (w0.min(GAIN_RAYS), h0.min(GAIN_RAYS));
-    let size = bare.tile.size;
-    let (origin, top) = (bare.tile.origin, bare.tile.top_z);
     // transmittances[k][level]: every ray's, over all azimuths.
     let transmittances: Vec<Vec<Vec<f32>>> = (0..PATH_GAIN_NODES)
         .map(|k| {
-            let polar = k as f32 * PATH_GAIN_STEP_DEGREES;
-            let mut per_level = vec![Vec::with_capacity((GAIN_AZIMUTHS as u32 * rx * ry) as usize); levels];
-            for a in 0..GAIN_AZIMUTHS {
-                let azimuth = (a as f32 + 0.5) * 360.0 / GAIN_AZIMUTHS as f32;
-                let wo: Vec3 = direction_from_angles(polar, azimuth);
-                let stream = (k * GAIN_AZIMUTHS + a) as u64;
-                // Row by row in parallel, gathered in row order: the same numbers on any
-                // number of threads.
-                let rows: Vec<Vec<Vec<f32>>> = (0..ry)
-                    .into_par_iter()
-                    .map(|j| {
-                        let mut out = vec![Vec::with_capacity(rx as usize); levels];
-                        for i in 0..rx {
-                            let mut rng = Rng::new(seed, stream, (j * rx + i) as u64);
-                            let (u, v) = rng.next_2d();
-                            let start = origin + Vec2::new((i as f32 + u) / rx as f32, (j as f32 + v) / ry as f32) * size;
-                            let ray = Ray::new(start.extend(top), -wo);
-                            let mut steps = 0;
-                            let HfTrace::Hit(t_end) = tracer.trace(&ray, 0.0, f32::MAX, 0.0, STEPS, &mut steps) else {
-                                continue;
-                            };
-                            for (level, column) in out.iter_mut().enumerate() {
-                                let t = if with_flyaways[level] { visit_flyaways(bare.levels[level].flyaways.as_ref().unwrap(), &grids[level], &ray, 0.0, t_end, COLUMNS, |_, _, _, _| {}).transmittance } else { 1.0 };
-                                column.push(t);
-                            }
-                        }
-                        out
-                    })
-                    .collect();
-                for row in rows {
-                    for (all, mut r) in per_level.iter_mut().zip(row) {
-                        all.append(&mut r);
-                    }
-                }
-            }
-            per_level
+            let rays: Vec<Vec<f32>> = trace_rays(&bare, periodic, seed, k, &|ray, t_end, _| {
+                (0..levels).map(|level| if with_flyaways[level] { visit_flyaways(bare.levels[level].flyaways.as_ref().unwrap(), &grids[level], ray, 0.0, t_end, COLUMNS, |_, _, _, _| {}).transmittance } else { 1.0 }).collect()
+            });
+            (0..levels).map(|level| rays.iter().map(|r| r[level]).collect()).collect()
         })
         .collect();
     (1..levels)

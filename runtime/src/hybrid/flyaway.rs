@@ -177,14 +177,15 @@ pub const PATH_GAIN_STEP_DEGREES: f32 = 10.0;
 /// The range a stored gain must lie in (a reader refuses others).
 pub const PATH_GAIN_RANGE: [f32; 2] = [0.25, 4.0];
 
-/// A coarse flyaway level's gain on its opacity exponent per polar angle θ of the ray
-/// (format 1.9, the optional `FLYAWAY_PATH_GAIN` section; runtime/HYBRID_FORMAT.md §7.3):
-/// a node crossed over a path ℓ has opacity 1 − (1 − α)^(g(θ)·ℓ/s), g linear in θ
-/// between the nodes at 0°, 10°, … 80° and constant past 80°. Fitted so that the level's
-/// mean transmittance over the tile matches level 0's at each node's angle
-/// (`baker/src/prefilter/path_gain.rs`): a coarse voxel's α says what it hides seen from
-/// above, and Beer's law from there is wrong at a slant by 5–20% in the transmittance
-/// (baker/PREFILTER_MEASUREMENTS.md, "The coarse flyaways' opacity by angle").
+/// A flyaway level's gain on its opacity exponent per polar angle θ of the ray (format
+/// 1.9, the optional `FLYAWAY_PATH_GAIN` section; runtime/HYBRID_FORMAT.md §7.3): a node
+/// crossed over a path ℓ has opacity 1 − (1 − α)^(g(θ)·ℓ/s), g linear in θ between the
+/// nodes at 0°, 10°, … 80° and constant past 80°. Fitted so that a coarse level's mean
+/// transmittance over the tile matches level 0's at each node's angle, and level 0's
+/// the volume's (`baker/src/prefilter/path_gain.rs`): α says what a voxel hides seen
+/// from above (or its density), and Beer's law from there is wrong at a slant by 5–20%
+/// in the transmittance (baker/PREFILTER_MEASUREMENTS.md, "The coarse flyaways' opacity
+/// by angle").
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct PathGain(pub [f32; PATH_GAIN_NODES]);
@@ -317,10 +318,6 @@ impl Flyaways {
             return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
         }
         if let Some(gain) = &self.path_gain {
-            if level == 0 {
-                // Level 0 is what the gains are fitted to: its Beer's law is the truth's.
-                return Err(ModelError::PathGain { level, why: "level 0 may not have one (only coarse levels do)".into() });
-            }
             if let Some((node, g)) = gain.invalid() {
                 return Err(ModelError::PathGain { level, why: format!("{g} at {}° is outside [{}, {}]", node as f32 * PATH_GAIN_STEP_DEGREES, PATH_GAIN_RANGE[0], PATH_GAIN_RANGE[1]) });
             }

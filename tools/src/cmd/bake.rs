@@ -256,6 +256,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             AlphaArg::Full => FlyawayAlpha::Full,
             AlphaArg::Density => FlyawayAlpha::Density,
         },
+        ..FlyawayOptions::default()
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
