@@ -145,6 +145,12 @@ pub struct BakeArgs {
     /// Coverage of a level-0 flyaway voxel: opaque, or ρ/ρ_solid.
     #[arg(long, value_enum, default_value = "density")]
     pub flyaway_alpha: AlphaArg,
+    /// Cross level-0 flyaway voxels by Beer's law from α alone, rather than with the path
+    /// gain by polar angle fitted so that they let through what the volume's flyaway
+    /// voxels do (format 1.9's FLYAWAY_PATH_GAIN at level 0; baker/FIT_MEASUREMENTS.md,
+    /// "The flyaways' opacity against the volume").
+    #[arg(long)]
+    pub no_flyaway_path_gain: bool,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -256,7 +262,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             AlphaArg::Full => FlyawayAlpha::Full,
             AlphaArg::Density => FlyawayAlpha::Density,
         },
-        ..FlyawayOptions::default()
+        path_gain: !args.no_flyaway_path_gain,
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
@@ -360,6 +366,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             100.0 * f.error_fitted,
             f.problem.as_ref().map(|p| format!(" ({p})")).unwrap_or_default()
         );
+        if let (Some(g), Some(tv), Some(tm)) = (&f.path_gain, &f.transmittance_volume, &f.transmittance_ungained) {
+            // Nodes 0, 4 and 7: 0°, 40° and 70°.
+            let ratio = |k: usize| if tv[k] > 0.0 { tm[k] / tv[k] } else { 1.0 };
+            println!("  level-0 path gain at 0°/40°/70°: {:.2}/{:.2}/{:.2} (Beer's law from α let through {:.2}/{:.2}/{:.2} of what the volume's flyaway voxels do)", g[0], g[4], g[7], ratio(0), ratio(4), ratio(7));
+        }
     }
     if let Some(t) = &r.transmission {
         println!(
