@@ -297,7 +297,7 @@ fn the_path_gain_matches_level_0s_transmittance_at_every_slant() {
     let mut filled = std::collections::BTreeMap::new();
     for _ in 0..90 {
         let (x, y, depth) = ((rng.next_u64() % n as u64) as u32, (rng.next_u64() % n as u64) as u32, (rng.next_u64() % 6) as u16);
-        let (len, along_x) = (3 + (rng.next_u64() % 10) as u32, rng.next_u64() % 4 != 0);
+        let (len, along_x) = (3 + (rng.next_u64() % 10) as u32, !rng.next_u64().is_multiple_of(4));
         for k in 0..len {
             let (i, j) = if along_x { ((x + k) % n, y) } else { (x, (y + k) % n) };
             filled.insert((i, j, depth), if along_x { Vec3::X } else { Vec3::Y });

@@ -207,7 +207,7 @@ impl PathGain {
 
     /// The first gain outside [`PATH_GAIN_RANGE`] (NaN included), with its node.
     pub fn invalid(&self) -> Option<(usize, f32)> {
-        self.0.iter().copied().enumerate().find(|&(_, g)| !(g >= PATH_GAIN_RANGE[0] && g <= PATH_GAIN_RANGE[1]))
+        self.0.iter().copied().enumerate().find(|&(_, g)| !(PATH_GAIN_RANGE[0]..=PATH_GAIN_RANGE[1]).contains(&g))
     }
 }
 
@@ -317,10 +317,8 @@ impl Flyaways {
         if let Some(node) = seen.iter().position(|s| !s) {
             return Err(ModelError::FlyawayUnreached { level, node: node as u32 });
         }
-        if let Some(gain) = &self.path_gain {
-            if let Some((node, g)) = gain.invalid() {
-                return Err(ModelError::PathGain { level, why: format!("{g} at {}° is outside [{}, {}]", node as f32 * PATH_GAIN_STEP_DEGREES, PATH_GAIN_RANGE[0], PATH_GAIN_RANGE[1]) });
-            }
+        if let Some((node, g)) = self.path_gain.as_ref().and_then(PathGain::invalid) {
+            return Err(ModelError::PathGain { level, why: format!("{g} at {}° is outside [{}, {}]", node as f32 * PATH_GAIN_STEP_DEGREES, PATH_GAIN_RANGE[0], PATH_GAIN_RANGE[1]) });
         }
         if self.groups.is_some() && self.spreads.is_none() {
             // The second group is the rest of a node whose record gives the first.
