@@ -22,18 +22,9 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let model = format::read_file(Path::new(&args[1])).expect("read the model");
     let volume = load_fabric(Path::new(&args[2]), &MaterialOverrides::default()).expect("read the fabric");
-    let [nx, ny, nz] = volume.dims();
     let f = model.levels[0].flyaways.as_ref().expect("level 0 has flyaways");
     // Keep only the voxels the model's level 0 holds as flyaways.
-    let mut removed = vec![true; nx * ny * nz];
-    for j in 0..model.height_px() as usize {
-        for i in 0..model.width() as usize {
-            for node in f.list(j * model.width() as usize + i) {
-                let z = nz - 1 - node.depth as usize;
-                removed[(z * ny + j) * nx + i] = false;
-            }
-        }
-    }
+    let removed = fabric_baker::prefilter::path_gain::all_but_level0_flyaways(&model, volume.dims());
     let lookup = std::env::var("LOOKUP").map_or(fabric_baker::reference::medium::Lookup::Trilinear, |v| if v == "nearest" { fabric_baker::reference::medium::Lookup::Nearest } else { fabric_baker::reference::medium::Lookup::Trilinear });
     let medium = TracedMedium::new(&volume, MediumOptions { lookup, empty_orientation: EmptyOrientation::Isotropic, periodic: true, mask: Some(&removed) }).expect("the medium");
     let tracer = HeightTracer::new(&model, true);

@@ -41,7 +41,7 @@ use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
 use crate::reference::rng::mix64;
-use crate::prefilter::path_gain::fit_level0_gain;
+use crate::prefilter::path_gain::{all_but_level0_flyaways, fit_level0_gain};
 use crate::reference::medium::MediumOptions;
 use crate::reference::tracking::TracedMedium;
 use crate::reference::{Lookup, MeasureScene, ReferenceError};
@@ -689,15 +689,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let level0_gain = if fo.path_gain {
             let bar = begin_stage(progress, "flyaways: path gain", 1);
             // The medium of the flyaway voxels alone: every other voxel removed.
-            let [nx, ny, nz] = volume.dims();
-            let mut others = vec![true; nx * ny * nz];
-            let f = model.levels[0].flyaways.as_ref().expect("level 0's flyaways, just set");
-            for index in 0..f.heads.len() {
-                let (i, j) = (index % nx, index / nx);
-                for node in f.list(index) {
-                    others[((nz - 1 - node.depth as usize) * ny + j) * nx + i] = false;
-                }
-            }
+            let others = all_but_level0_flyaways(&model, volume.dims());
             let alone = TracedMedium::new(volume, MediumOptions { lookup: options.lookup, periodic: true, mask: Some(&others), ..Default::default() })?;
             let g = fit_level0_gain(&model, &alone, mix64(options.seed ^ 0x9a17));
             bar.finish();

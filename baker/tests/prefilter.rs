@@ -361,10 +361,10 @@ fn level_0s_path_gain_matches_the_volumes_flyaway_transmittance() {
         }
     }
     add_flyaways(&mut m, 0, &voxels, &plain_params()).unwrap();
-    let mut others = vec![true; n * n * 16];
-    for (i, j, f) in &voxels {
-        others[((15 - f.depth as usize) * n + *j as usize) * n + *i as usize] = false;
-    }
+    let others = fabric_baker::prefilter::path_gain::all_but_level0_flyaways(&m, [n, n, 16]);
+    // The voxels the medium keeps are the model's flyaways, each at its own layer.
+    assert_eq!(others.iter().filter(|r| !**r).count(), voxels.len());
+    assert!(voxels.iter().all(|(i, j, f)| !others[((15 - f.depth as usize) * n + *j as usize) * n + *i as usize]));
     let alone = TracedMedium::new(&v, MediumOptions { periodic: true, mask: Some(&others), ..Default::default() }).unwrap();
     let g = fit_level0_gain(&m, &alone, 3).expect("level 0 has flyaways");
     assert_eq!(g.gain.invalid(), None);

@@ -87,6 +87,24 @@ fn trace_rays<T: Send>(model: &HybridModel, periodic: bool, seed: u64, k: usize,
     all
 }
 
+/// The mask (`true` = removed, volume order, x fastest) that leaves a volume of `dims`
+/// voxels with only the voxels `model`'s level-0 flyaway lists hold (one level-0 texel
+/// per voxel column; node depth k is voxel layer dims[2] − 1 − k): the medium
+/// [`fit_level0_gain`] takes.
+pub fn all_but_level0_flyaways(model: &HybridModel, dims: [usize; 3]) -> Vec<bool> {
+    let [nx, ny, nz] = dims;
+    let mut removed = vec![true; nx * ny * nz];
+    if let Some(f) = model.levels[0].flyaways.as_ref() {
+        for index in 0..f.heads.len().min(nx * ny) {
+            let (i, j) = (index % nx, index / nx);
+            for node in f.list(index).filter(|n| (n.depth as usize) < nz) {
+                removed[((nz - 1 - node.depth as usize) * ny + j) * nx + i] = false;
+            }
+        }
+    }
+    removed
+}
+
 /// Level 0's path gain against the volume it was baked from: g(θ_k) such that the mean
 /// transmittance of the model's level-0 flyaway voxels matches the reference medium's
 /// through the same voxels alone (`flyaways_only`: the medium with every other voxel

@@ -191,7 +191,7 @@ pub const PATH_GAIN_RANGE: [f32; 2] = [0.25, 4.0];
 pub struct PathGain(pub [f32; PATH_GAIN_NODES]);
 
 impl PathGain {
-    /// No gain: Beer's law from α (level 0, and levels without the section).
+    /// No gain: Beer's law from α (levels without the section).
     pub const ONE: PathGain = PathGain([1.0; PATH_GAIN_NODES]);
 
     /// The gain for a ray of direction `d` (unit): by its polar angle to the tile's
