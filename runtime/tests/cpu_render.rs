@@ -533,3 +533,31 @@ fn a_flyaway_grid_cell_holds_its_own_ray_and_lookups_keep_the_mean_transmittance
     assert!(lookup_transmittances(&offsets, &[0.3; 8], (fa, fb), (4, 2), 0.3).iter().all(|x| (x - 0.3).abs() < 1e-6));
     assert!(lookup_transmittances(&offsets, &[0.0; 8], (fa, fb), (4, 2), 0.2).iter().all(|&x| x == 0.2));
 }
+
+#[test]
+fn the_split_filter_changes_only_the_flyaways_of_views_with_a_flyaway_grid() {
+    // `CoarseFilter::Split`: the box grid's rays shaded, a 4 × 4 grid one level finer
+    // marched unshaded for the coverage (render.rs, FlyCover). A close-up (no flyaway
+    // grid) and a model without flyaways draw the box filter's image bit for bit; a far
+    // view of flyaways does not.
+    let model = examples::synthetic_model(32, 3);
+    let lights = [Light::directional(Vec3::new(-0.3, 0.2, 1.0), Vec3::ONE)];
+    let opts = |coarse_filter| CpuRenderOptions { periodic: true, coarse_filter, ..Default::default() };
+    let centre = Vec3::new(0.5, 0.5, 0.0);
+    // 0.2 texels per pixel (under FINE_GRID_FROM: one flyaway ray) and 6.
+    let near = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 0.15, 24, 24);
+    let far = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 6.0, 32, 32);
+    let at = |m: &fabric_runtime::hybrid::HybridModel, cam: &Camera, f| render(m, cam, &lights, &opts(f)).unwrap();
+    assert_eq!(at(&model, &near, CoarseFilter::Split).pixels, at(&model, &near, CoarseFilter::Box).pixels);
+    let scene = Scene::new(&model, &far, &lights, opts(CoarseFilter::Split)).unwrap();
+    let m = scene.level_mix(16.5, 16.5, model.tile.top_z);
+    let cover = m.cover.expect("a far view has a coverage grid");
+    assert!(cover.taps.0 * cover.taps.1 == 4 * m.fly_taps.0 * m.fly_taps.1 && cover.fly.0 <= m.fly.0, "{m:?}");
+    assert!(Scene::new(&model, &far, &lights, opts(CoarseFilter::Box)).unwrap().level_mix(16.5, 16.5, model.tile.top_z).cover.is_none());
+    let (split, boxed) = (at(&model, &far, CoarseFilter::Split), at(&model, &far, CoarseFilter::Box));
+    assert!(split.pixels.iter().all(|p| p.is_finite()));
+    assert!(split.pixels != boxed.pixels, "the flyaways' coverage came from the box grid");
+    let mut bare = model.clone();
+    bare.levels.iter_mut().for_each(|l| l.flyaways = None);
+    assert_eq!(at(&bare, &far, CoarseFilter::Split).pixels, at(&bare, &far, CoarseFilter::Box).pixels);
+}

@@ -188,6 +188,28 @@ fn gpu_matches_the_cpu_twin() {
     let finer = render(&synthetic, &far_synth, &lights, &fine.options).unwrap();
     let apart = relative_rmse(&finer, &boxed).unwrap();
     assert!(apart > 1e-4, "the fine flyaway grid drew the box filter's image ({apart})");
+    // The split filter (`--coarse-filter split`, specialization constant 9): the box
+    // grid's rays shaded, the coverage from a 4 × 4 grid marched unshaded. The twins
+    // agree on the synthetic far view and on the baked felt's (dense flyaways, at 45°),
+    // and its images are neither the box filter's nor the fine one's.
+    let split = Case { name: "synthetic far, split flyaway coverage", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Split, ..opts.clone() } };
+    let scene = fabric_runtime::cpu::render::Scene::new(&synthetic, &split.camera, &lights, split.options.clone()).unwrap();
+    let m = scene.level_mix(16.5, 16.5, synthetic.tile.top_z);
+    let cover = m.cover.expect("a coverage grid far away");
+    assert!(m.fly_taps.0 * m.fly_taps.1 > 1 && cover.taps.0 * cover.taps.1 > m.fly_taps.0 * m.fly_taps.1, "{m:?}");
+    assert_twins_agree(split.name, &compare(&pass, &synthetic, &lights, &split));
+    let covered = render(&synthetic, &far_synth, &lights, &split.options).unwrap();
+    let (from_box, from_fine) = (relative_rmse(&covered, &boxed).unwrap(), relative_rmse(&covered, &finer).unwrap());
+    assert!(from_box > 1e-4 && from_fine > 1e-4, "the split filter drew another filter's image ({from_box}, {from_fine})");
+    let felt_far = Case { name: "baked felt far at 45°, split flyaway coverage", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(fb.center().x, fb.center().y, fb.max.z), 4.0, 8.0 * 32.0 / texels_across * fb.size().x, 32, 32), options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Split, ..opts.clone() } };
+    let scene = fabric_runtime::cpu::render::Scene::new(&felt, &felt_far.camera, &lights, felt_far.options.clone()).unwrap();
+    assert!(scene.level_mix(16.5, 16.5, felt.tile.top_z).cover.is_some(), "the felt's far view has a coverage grid");
+    let a = compare(&pass, &felt, &lights, &felt_far);
+    let boxed_felt = render(&felt, &felt_far.camera, &lights, &CpuRenderOptions { coarse_filter: CoarseFilter::Box, ..felt_far.options.clone() }).unwrap();
+    let from_box = relative_rmse(&render(&felt, &felt_far.camera, &lights, &felt_far.options).unwrap(), &boxed_felt).unwrap();
+    assert!(from_box > 1e-2, "the felt's split image is the box filter's ({from_box})");
+    assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
+    assert_twins_agree(felt_far.name, &a);
     assert_no_validation_errors(&device);
 }
 

@@ -43,10 +43,21 @@ struct LevelMix {
     vec2 fine_axis_b;
     uint fine_taps_a;
     uint fine_taps_b;
+    // The split filter's coverage grid: cover_taps_a x cover_taps_b parallel rays over
+    // cover_axis_a, cover_axis_b, each marching the levels cover_lo, cover_hi (weight
+    // cover_weight) unshaded (cover_taps_a = 0: none; the box grid's rays give the
+    // coverage). Twin: LevelMix::cover (FlyCover).
+    uint cover_lo;
+    uint cover_hi;
+    float cover_weight;
+    vec2 cover_axis_a;
+    vec2 cover_axis_b;
+    uint cover_taps_a;
+    uint cover_taps_b;
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u, vec2(0.0), vec2(0.0), 1u, 1u);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u, vec2(0.0), vec2(0.0), 1u, 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 0u, 0u);
 }
 
 // Lookups of the box grid along a footprint's major axis: G per anisotropic lookup, at
@@ -262,6 +273,24 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.fine_axis_b = vec2(0.0);
     m.fine_taps_a = 1u;
     m.fine_taps_b = 1u;
+    // The split filter: the coverage from the finer grid, where both grids spread.
+    m.cover_lo = m.fly_lo;
+    m.cover_hi = m.fly_hi;
+    m.cover_weight = 0.0;
+    m.cover_axis_a = vec2(0.0);
+    m.cover_axis_b = vec2(0.0);
+    m.cover_taps_a = 0u;
+    m.cover_taps_b = 0u;
+    if (FLY_COVER_GRID != FLY_GRID) {
+        FlyGrid cover = fly_box_grid(major, taps, bias, FLY_COVER_GRID);
+        if (fly_grid && cover.spread > 0.0) {
+            linear_levels(cover.level, last, m.cover_lo, m.cover_hi, m.cover_weight);
+            m.cover_axis_a = axis * cover.spread;
+            m.cover_axis_b = minor_axis * cover.spread;
+            m.cover_taps_a = cover.taps_major;
+            m.cover_taps_b = cover.taps_minor;
+        }
+    }
     BoxGrid g;
     if (!box_grid(major, minor, taps, lambda, bias, g)) {
         // With a grid, level 0 alone up to LEVEL0_REACH texels (lambda <= 1 here);

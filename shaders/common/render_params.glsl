@@ -78,5 +78,9 @@ layout(constant_id = 7) const uint FILTER_GRID = 2u;
 // Rays per axis of the flyaways' box grid (level.glsl, fly_box_grid; 1: one ray). Twin:
 // CoarseFilter::fly_grid.
 layout(constant_id = 8) const uint FLY_GRID = 2u;
+// Rays per axis of the grid that gives the flyaways' coverage, marched unshaded, where it
+// differs from FLY_GRID (the split filter's 4; level.glsl, LevelMix's cover_*). Twin:
+// CoarseFilter::cover_grid.
+layout(constant_id = 9) const uint FLY_COVER_GRID = 2u;
 
 #endif // RENDER_PARAMS_GLSL

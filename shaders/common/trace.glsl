@@ -44,11 +44,11 @@ bool enter_top(vec3 o, vec3 d, out float t) {
 }
 
 // The flyaways of `level` over [t_top, t_end].
-FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level, inout uint shadow_limited) {
+FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level, bool shaded, inout uint shadow_limited) {
     if (!HAS_FLYAWAYS || model.levels[level].fly_nodes == 0u) {
         return FlyawayMarch(vec3(0.0), 1.0, 0u, false);
     }
-    return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, shadow_limited);
+    return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, shaded, shadow_limited);
 }
 
 // The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
@@ -81,20 +81,20 @@ vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_
 // Most rays of a flyaway grid: FLY_MAX_ANISOTROPY x FLY_FINE_GRID along the major axis by
 // FLY_FINE_GRID across.
 const uint MAX_FLY_RAYS = 32u;
+// Most rays of the split filter's shading grid (FLY_GRID = 2: FLY_MAX_ANISOTROPY x 2 by 2).
+const uint MAX_SPLIT_RAYS = 8u;
 
 // What the flyaways let through in front of each of the n lookups of a surface grid (at
 // tap_offset(axis, taps, minor_axis, taps_minor, k) from the hit): the transmittance of
-// the flyaway ray whose cell holds it (fly_cell), scaled so that their mean is the
+// the flyaway ray (of fga x fgb over fly_a, fly_b) whose cell holds it (fly_cell), scaled so that their mean is the
 // pixel's mean_t; mean_t for all where no lookup sees through. Twin:
 // lookup_transmittances (runtime/src/cpu/render.rs).
-void lookup_transmittances(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint n, float fly_t[MAX_FLY_RAYS], LevelMix mix_, float mean_t, out float tap_t[MAX_SURFACE_TAPS]) {
-    uint fga = max(mix_.fly_taps_a, 1u);
-    uint fgb = max(mix_.fly_taps_b, 1u);
+void lookup_transmittances(vec2 axis, uint taps, vec2 minor_axis, uint taps_minor, uint n, float fly_t[MAX_FLY_RAYS], vec2 fly_a, uint fga, vec2 fly_b, uint fgb, float mean_t, out float tap_t[MAX_SURFACE_TAPS]) {
     float sum = 0.0;
     for (uint k = 0u; k < MAX_SURFACE_TAPS; ++k) {
         tap_t[k] = 1.0;
         if (k < n) {
-            uint c = fly_cell(tap_offset(axis, taps, minor_axis, taps_minor, k), mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb);
+            uint c = fly_cell(tap_offset(axis, taps, minor_axis, taps_minor, k), fly_a, fga, fly_b, fgb);
             tap_t[k] = c < MAX_FLY_RAYS ? fly_t[c] : mean_t;
             sum += tap_t[k];
         }
@@ -182,33 +182,108 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         fly_t[k] = 1.0;
         fly_xy[k] = vec2(0.0);
     }
-    for (uint k = 0u; k < fga * fgb * fly_levels; ++k) {
-        uint ray = k / fly_levels;
-        uint lk = k % fly_levels;
+    // The split filter: after the box grid's shaded rays, the cover grid's unshaded
+    // ones give the coverage (Scene::trace_mixed's `Split`): each box ray's colour is
+    // spread over the opacity of the cover rays in its cell.
+    uint cga = mix_.cover_taps_a;
+    uint cgb = mix_.cover_taps_b;
+    bool split = FLY_COVER_GRID != FLY_GRID && HAS_FLYAWAYS && cga * cgb > 0u && fga * fgb > 1u && fga * fgb <= MAX_SPLIT_RAYS;
+    uint box_rays = fga * fgb;
+    uint all_rays = box_rays + (split ? cga * cgb : 0u);
+    uint cover_levels = split && mix_.cover_weight > 0.0 && mix_.cover_hi != mix_.cover_lo ? 2u : 1u;
+    // The grid whose rays' transmittances the surface's lookups are seen through.
+    vec2 t_axis_a = mix_.fly_axis_a;
+    vec2 t_axis_b = mix_.fly_axis_b;
+    uint tga = fga;
+    uint tgb = fgb;
+    vec3 box_rgb[MAX_SPLIT_RAYS];
+    float box_t[MAX_SPLIT_RAYS];
+    float cell_o[MAX_SPLIT_RAYS];
+    uint cell_n[MAX_SPLIT_RAYS];
+    for (uint k = 0u; k < MAX_SPLIT_RAYS; ++k) {
+        box_rgb[k] = vec3(0.0);
+        box_t[k] = 1.0;
+        cell_o[k] = 0.0;
+        cell_n[k] = 0u;
+    }
+    for (uint k = 0u; k < all_rays * 2u; ++k) {
+        uint ray = k / 2u;
+        uint lk = k % 2u;
+        bool cover = ray >= box_rays;
+        uint levels = cover ? cover_levels : fly_levels;
+        if (lk >= levels) {
+            continue;
+        }
+        uint index = cover ? ray - box_rays : ray;
+        vec2 offset = cover ? tap_offset(mix_.cover_axis_a, cga, mix_.cover_axis_b, cgb, index) : tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, index);
         vec3 ro = o;
-        if (fga * fgb > 1u) {
-            ro = o + vec3(tap_offset(mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb, ray), 0.0);
+        if (cover || fga * fgb > 1u) {
+            ro = o + vec3(offset, 0.0);
             if (lk == 0u) {
                 bool landed;
                 ray_end = own_surface_end(ro, d, t_top, t_end, floor_level, out_, landed);
-                if (landed && ray < MAX_FLY_RAYS) {
-                    fly_xy[ray] = (ro + d * ray_end).xy;
-                    fly_landed |= 1u << ray;
+                // Level 0's lookups borrow the shading grid's hits (with the split filter
+                // too: the surface is the box filter's).
+                if (landed && !cover && index < MAX_FLY_RAYS) {
+                    fly_xy[index] = (ro + d * ray_end).xy;
+                    fly_landed |= 1u << index;
                 }
             }
         }
-        float w = fly_blend ? (lk == 0u ? 1.0 - mix_.fly_weight : mix_.fly_weight) : 1.0;
-        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, ray_end, lk == 0u ? mix_.fly_lo : mix_.fly_hi, shadow_limited);
+        float weight_hi = cover ? mix_.cover_weight : mix_.fly_weight;
+        float w = levels == 2u ? (lk == 0u ? 1.0 - weight_hi : weight_hi) : 1.0;
+        uint level = cover ? (lk == 0u ? mix_.cover_lo : mix_.cover_hi) : (lk == 0u ? mix_.fly_lo : mix_.fly_hi);
+        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, ray_end, level, !cover, shadow_limited);
         ray_radiance = lk == 0u ? fly.radiance * w : ray_radiance + fly.radiance * w;
         ray_transmittance = lk == 0u ? fly.transmittance * w : ray_transmittance + fly.transmittance * w;
         out_.step_limited = out_.step_limited || fly.limited;
-        if (lk + 1u == fly_levels) {
-            if (ray < MAX_FLY_RAYS) {
+        if (lk + 1u == levels) {
+            if (cover) {
+                fly_t[index] = ray_transmittance;
+                uint c = fly_cell(offset, mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb);
+                cell_o[c] += 1.0 - ray_transmittance;
+                cell_n[c] += 1u;
+                continue;
+            }
+            if (split) {
+                box_rgb[ray] = ray_radiance;
+                box_t[ray] = ray_transmittance;
+            } else if (ray < MAX_FLY_RAYS) {
                 fly_t[ray] = ray_transmittance;
             }
             fly_radiance += ray_radiance * share;
             fly_transmittance += ray_transmittance * share;
         }
+    }
+    if (split) {
+        // Radiance per unit of opacity: each box ray's own, the pixel's where its ray met
+        // nothing the cover rays of its cell met.
+        float opacity = 0.0;
+        vec3 rgb = vec3(0.0);
+        for (uint k = 0u; k < box_rays; ++k) {
+            opacity += 1.0 - box_t[k];
+        }
+        for (uint k = 0u; k < box_rays; ++k) {
+            rgb += box_rgb[k];
+        }
+        vec3 mean_colour = opacity > 1e-4 ? rgb / opacity : vec3(0.0);
+        fly_radiance = vec3(0.0);
+        for (uint k = 0u; k < box_rays; ++k) {
+            float o_box = 1.0 - box_t[k];
+            float o_cover = cell_n[k] > 0u ? cell_o[k] / float(cell_n[k]) : o_box;
+            vec3 colour = o_box > 1e-4 ? box_rgb[k] / o_box : mean_colour;
+            fly_radiance += colour * o_cover * share;
+        }
+        float sum = 0.0;
+        for (uint k = 0u; k < cga * cgb; ++k) {
+            sum += fly_t[k];
+        }
+        fly_transmittance = sum / float(cga * cgb);
+        // What the surface's lookups are seen through: the cover grid's rays.
+        t_axis_a = mix_.cover_axis_a;
+        t_axis_b = mix_.cover_axis_b;
+        tga = cga;
+        tgb = cgb;
     }
     out_.flyaway_opacity = 1.0 - fly_transmittance;
     // What they let through sees the surface, blended over its levels.
@@ -266,8 +341,8 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
             float fine_t[MAX_SURFACE_TAPS];
             bool coarse_grid = per_lookup && coarse && n > 1u;
             bool fine_grid = per_lookup && mix_.lo == 0u && n0 > 1u;
-            lookup_transmittances(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, coarse_grid ? n : 0u, fly_t, mix_, fly_transmittance, tap_t);
-            lookup_transmittances(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, fine_grid ? n0 : 0u, fly_t, mix_, fly_transmittance, fine_t);
+            lookup_transmittances(mix_.axis, mix_.taps, mix_.minor_axis, mix_.taps_minor, coarse_grid ? n : 0u, fly_t, t_axis_a, tga, t_axis_b, tgb, fly_transmittance, tap_t);
+            lookup_transmittances(mix_.fine_axis_a, mix_.fine_taps_a, mix_.fine_axis_b, mix_.fine_taps_b, fine_grid ? n0 : 0u, fly_t, t_axis_a, tga, t_axis_b, tgb, fly_transmittance, fine_t);
             for (uint k = 0u; k < (blend ? 2u : 1u); ++k) {
                 uint level = k == 0u ? mix_.lo : mix_.hi;
                 vec3 s = shade_surface(o, d, hit.t, level, mix_, level == 0u ? fine_xy : tap_xy, level == 0u ? fine_t : tap_t, shadow_limited);

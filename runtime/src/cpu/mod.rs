@@ -82,21 +82,35 @@ pub enum CoarseFilter {
     /// 70° 17.6 → 12.0%), at 2–3× a wholly distant frame's time on the CPU
     /// (baker/PREFILTER_MEASUREMENTS.md, "A finer box for the flyaways").
     Fine,
+    /// The flyaways' light as `Box` shades it, their coverage from `Fine`'s grid marched
+    /// unshaded: each box ray's colour (its radiance per unit of opacity) spread over
+    /// the opacity of the fine rays in its cell (baker/PREFILTER_MEASUREMENTS.md, "The
+    /// flyaways' coverage from a finer grid").
+    Split,
 }
 
 impl CoarseFilter {
     /// Lookups per axis of the surface's grid (1: none).
     pub fn grid(self) -> u32 {
         match self {
-            CoarseFilter::Box | CoarseFilter::Fine => render::FILTER_GRID,
+            CoarseFilter::Box | CoarseFilter::Fine | CoarseFilter::Split => render::FILTER_GRID,
             CoarseFilter::Bilinear => 1,
+        }
+    }
+
+    /// Rays per axis of the grid that gives the flyaways' coverage (`Split`: the fine
+    /// grid; else the shading grid's own, [`CoarseFilter::fly_grid`]).
+    pub fn cover_grid(self) -> u32 {
+        match self {
+            CoarseFilter::Split => render::FLY_FINE_GRID,
+            f => f.fly_grid(),
         }
     }
 
     /// Rays per axis of the flyaways' grid (1: none; `render::fly_box_grid`).
     pub fn fly_grid(self) -> u32 {
         match self {
-            CoarseFilter::Box => render::FILTER_GRID,
+            CoarseFilter::Box | CoarseFilter::Split => render::FILTER_GRID,
             CoarseFilter::Fine => render::FLY_FINE_GRID,
             CoarseFilter::Bilinear => 1,
         }

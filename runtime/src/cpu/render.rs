@@ -14,13 +14,13 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::flyaways::{FlyawayGrid, march_flyaways};
+use super::flyaways::{FlyawayGrid, march_flyaways, visit_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
 use super::env_shading::{EnvBudget, texel_env_response};
 use crate::brdf::visible_normal::{tilt_frames, view_visibility};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
-use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
+use super::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
 use crate::brdf::{BrdfReading, DiffuseLaw};
 use crate::hybrid::{HybridModel, TexelBrdf};
 use crate::image::Image;
@@ -83,11 +83,24 @@ pub struct LevelMix {
     /// footprint's major axis first) beside the hit ((1, 1): the hit's texel alone).
     pub fine_axes: (Vec2, Vec2),
     pub fine_taps: (u32, u32),
+    /// `CoarseFilter::Split`: the finer grid of rays that gives the flyaways' coverage
+    /// (None: the shading grid's own).
+    pub cover: Option<FlyCover>,
+}
+
+/// The flyaways' coverage grid of `CoarseFilter::Split`: `taps.0` × `taps.1` parallel
+/// rays over `axes` (as [`tap_offset`] places them), each marching the levels `fly`
+/// (lo, hi, weight of hi) for its transmittance alone, unshaded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlyCover {
+    pub fly: (usize, usize, f32),
+    pub axes: (Vec2, Vec2),
+    pub taps: (u32, u32),
 }
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1), fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1), fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover: None }
     }
 }
 
@@ -471,6 +484,13 @@ impl<'a> Scene<'a> {
         let fly_grid = fly_box_grid(major, n, bias, self.options.coarse_filter.fly_grid());
         let fly = linear_levels(fly_grid.lambda, last);
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
+        // `Split`: the coverage from the fine grid, where both grids spread.
+        let cover_grid = fly_box_grid(major, n, bias, self.options.coarse_filter.cover_grid());
+        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0 && cover_grid.spread > 0.0).then(|| FlyCover {
+            fly: linear_levels(cover_grid.lambda, last),
+            axes: (axis * cover_grid.spread, minor_axis * cover_grid.spread),
+            taps: (cover_grid.taps_major, cover_grid.taps_minor),
+        });
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             // With a grid, level 0 alone up to [`LEVEL0_REACH`] texels (λ ≤ 1 here);
             // without one, Vulkan's linear-mip blend.
@@ -500,7 +520,7 @@ impl<'a> Scene<'a> {
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
             };
-            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes, fine_taps };
+            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes, fine_taps, cover };
         };
         let (axis_b, minor_b) = (axis * (grid.span_major / major), minor_axis * (grid.span_minor / minor.max(1e-6)));
         // Level 0's grid blended with level 1's box grid up to where the box grid's level
@@ -508,13 +528,13 @@ impl<'a> Scene<'a> {
         let reach = level0_reach_weight((major / grid_taps(n, g) as f32).log2() + FILTER_OFFSET + bias);
         // A model without a chain reads level 0 through its grid at every distance.
         if last == 0 {
-            return LevelMix { lo: 0, hi: 0, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
+            return LevelMix { lo: 0, hi: 0, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
         }
         if reach < 1.0 {
-            return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g) };
+            return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
         }
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
-        LevelMix { lo, hi, weight, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1) }
+        LevelMix { lo, hi, weight, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -670,6 +690,8 @@ impl<'a> Scene<'a> {
         let mut fly_rays: Vec<f32> = Vec::new();
         // ... and where each met the surface (None: it missed or ran out of steps).
         let mut fly_hits: Vec<Option<Vec3>> = Vec::new();
+        // ... and each one's radiance and transmittance (for `Split`'s colours).
+        let mut box_rays: Vec<(Vec3, f32)> = Vec::new();
         for k in 0..ga * gb {
             let (r, t_end) = if ga * gb == 1 {
                 (*ray, t_end)
@@ -689,12 +711,50 @@ impl<'a> Scene<'a> {
             }
             if ga * gb > 1 {
                 fly_rays.push(f.transmittance);
+                box_rays.push((f.radiance, f.transmittance));
             }
             fly.radiance += f.radiance * share;
             fly.transmittance += f.transmittance * share;
             fly.limited |= f.limited;
             fly.shadow_limited += f.shadow_limited;
         }
+        // `Split`: the coverage from the finer grid's unshaded rays, each box ray's
+        // colour spread over the opacity of the fine rays in its cell.
+        // (The box rays' hits stay level 0's to borrow: the surface is the box filter's.)
+        let hits_grid = ((fa, fb), (ga, gb));
+        let ((fa, fb), (ga, gb)) = match mix.cover {
+            Some(c) if ga * gb > 1 && self.options.flyaways && self.model.has_flyaways() => {
+                let (cl, ch, cw) = c.fly;
+                let (ca, cb) = (c.taps.0.max(1), c.taps.1.max(1));
+                let mut cell_opacity = vec![(0.0f32, 0u32); (ga * gb) as usize];
+                let mut rays = Vec::with_capacity((ca * cb) as usize);
+                for k in 0..ca * cb {
+                    let offset = tap_offset(c.axes.0, ca, c.axes.1, cb, k);
+                    let r = Ray::new(ray.o + offset.extend(0.0), ray.d);
+                    let (t_end, _) = self.own_surface_end(&r, t_top, t_end, floor, &mut out);
+                    let (t, limited) = self.level_coverage(&r, t_top, t_end, cl, ch, cw);
+                    fly.limited |= limited;
+                    rays.push(t);
+                    let cell = &mut cell_opacity[fly_cell(offset, fa, ga, fb, gb) as usize];
+                    *cell = (cell.0 + 1.0 - t, cell.1 + 1);
+                }
+                // Radiance per unit of opacity: each box ray's own, the pixel's where its
+                // ray met nothing the fine rays of its cell met.
+                let opacity: f32 = box_rays.iter().map(|(_, t)| 1.0 - t).sum();
+                let mean_colour = if opacity > 1e-4 { box_rays.iter().map(|(f, _)| *f).sum::<Vec3>() / opacity } else { Vec3::ZERO };
+                fly.radiance = Vec3::ZERO;
+                for ((f, t), &(o_sum, n)) in box_rays.iter().zip(&cell_opacity) {
+                    let o = 1.0 - t;
+                    let fine_o = if n > 0 { o_sum / n as f32 } else { o };
+                    let colour = if o > 1e-4 { *f / o } else { mean_colour };
+                    fly.radiance += colour * fine_o * share;
+                }
+                fly.transmittance = rays.iter().sum::<f32>() / rays.len() as f32;
+                fly_rays = rays;
+                (c.axes, (ca, cb))
+            }
+            _ => ((fa, fb), (ga, gb)),
+        };
         out.flyaway_opacity = 1.0 - fly.transmittance;
         out.step_limited |= fly.limited;
         out.shadow_step_limited = fly.shadow_limited;
@@ -717,7 +777,7 @@ impl<'a> Scene<'a> {
                 // A close-up's grid, under half a texel across, reads beside the hit
                 // ([`FINE_TRACE_FROM`]).
                 let traced = fine_grid_traced(mix.fine_axes, self.model.inv_texel_size());
-                let fly_grid = FlyHits { hits: &fly_hits, axes: (fa, fb), taps: (ga, gb) };
+                let fly_grid = FlyHits { hits: &fly_hits, axes: hits_grid.0, taps: hits_grid.1 };
                 let fine_point = |k: u32| self.fine_lookup_point(ray, ray.at(t), tap_offset(mix.fine_axes.0, f0, mix.fine_axes.1, f1, k), traced, &fly_grid, floor);
                 let fine: Vec<Vec3> = if mix.lo == 0 && f0 * f1 > 1 { (0..f0 * f1).map(fine_point).collect() } else { Vec::new() };
                 // Each lookup seen through the flyaway ray whose cell holds it: where the
@@ -765,6 +825,27 @@ impl<'a> Scene<'a> {
                 (t_end, false)
             }
         }
+    }
+
+    /// The transmittance of the flyaways of levels `lo` and `hi` (weight `w` of `hi`)
+    /// over [t_top, t_end], unshaded; and whether a march ran out of columns.
+    fn level_coverage(&self, ray: &Ray, t_top: f32, t_end: f32, lo: usize, hi: usize, w: f32) -> (f32, bool) {
+        if !self.options.flyaways {
+            return (1.0, false);
+        }
+        let one = |level: usize| match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+            Some(f) => {
+                let m = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |_, _, _, _| {});
+                (m.transmittance, m.limited)
+            }
+            None => (1.0, false),
+        };
+        let (t, limited) = one(lo);
+        if w > 0.0 && hi != lo {
+            let (th, lh) = one(hi);
+            return (t * (1.0 - w) + th * w, limited | lh);
+        }
+        (t, limited)
     }
 
     /// The flyaways of `level` over [t_top, t_end], composited front to back.

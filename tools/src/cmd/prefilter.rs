@@ -106,7 +106,7 @@ pub struct PrefilterCmdArgs {
     #[arg(long)]
     pub check: bool,
     /// The renderer's coarse filter that --check measures (as `render --coarse-filter`).
-    #[arg(long, default_value = "box", value_parser = ["box", "fine", "bilinear"])]
+    #[arg(long, default_value = "box", value_parser = ["box", "fine", "split", "bilinear"])]
     pub check_filter: String,
     #[command(flatten)]
     pub prefilter: PrefilterArgs,
@@ -120,8 +120,9 @@ pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel, filter: &str) ->
     let coarse = match filter {
         "box" => CoarseFilter::Box,
         "fine" => CoarseFilter::Fine,
+        "split" => CoarseFilter::Split,
         "bilinear" => CoarseFilter::Bilinear,
-        other => anyhow::bail!("--check-filter {other}: box, fine or bilinear"),
+        other => anyhow::bail!("--check-filter {other}: box, fine, split or bilinear"),
     };
     println!("far views, coarse filter {filter} (relative RMSE against level 0 at >= 4x4 samples per texel): auto levels 1 spp | nearest level 1 spp | level 0 1 spp | truth's own noise");
     let mut views = Vec::new();

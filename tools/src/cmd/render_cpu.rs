@@ -48,7 +48,7 @@ pub struct CpuRenderFlags {
     /// closer to the pixel's box), "fine" (the box, with the flyaways along a 4×4 grid
     /// of rays two levels finer: closer still, 2–3× slower far away) or "bilinear" (one
     /// lookup per anisotropic tap: cheaper far away, runtime/GPU_MEASUREMENTS.md).
-    #[arg(long, default_value = "box", value_parser = ["box", "fine", "bilinear"])]
+    #[arg(long, default_value = "box", value_parser = ["box", "fine", "split", "bilinear"])]
     pub coarse_filter: String,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
@@ -114,6 +114,7 @@ impl CpuRenderFlags {
             coarse_filter: match self.coarse_filter.as_str() {
                 "bilinear" => CoarseFilter::Bilinear,
                 "fine" => CoarseFilter::Fine,
+                "split" => CoarseFilter::Split,
                 _ => CoarseFilter::Box,
             },
             edits,
