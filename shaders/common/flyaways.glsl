@@ -163,11 +163,14 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                 float t_out = min(t_next, (model.top_z - bottom - o.z) / d.z);
                 float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), gain * (t_out - t_in), l.fly_edge);
                 if (opacity > 0.0) {
-                    q_t[qn] = t_in;
-                    q_w[qn] = out_.transmittance * opacity;
-                    q_node[qn] = nd.zw;
-                    q_spread[qn] = spread;
-                    qn += 1u;
+                    // Unshaded, nothing is queued: the walk runs to the end in one go.
+                    if (shaded) {
+                        q_t[qn] = t_in;
+                        q_w[qn] = out_.transmittance * opacity;
+                        q_node[qn] = nd.zw;
+                        q_spread[qn] = spread;
+                        qn += 1u;
+                    }
                     out_.transmittance *= 1.0 - opacity;
                     if (out_.transmittance < MIN_TRANSMITTANCE) {
                         out_.transmittance = 0.0;
@@ -203,7 +206,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         }
         // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's closure
         // in Scene::march_level_flyaways).
-        for (uint i = 0u; i < (shaded ? qn : 0u); ++i) {
+        for (uint i = 0u; i < qn; ++i) {
             out_.radiance += q_w[i] * shade_fiber(level, q_node[i].y, octahedral_decode(q_node[i].x), q_spread[i], o + q_t[i] * d, -d, shadow_limited);
         }
     }

@@ -113,7 +113,7 @@ pub struct PrefilterCmdArgs {
 }
 
 /// Prints the far-view and sweep errors of `model` with the chain rendered through
-/// `filter` ("box", "fine" or "bilinear"); returns them for the report.
+/// `filter` ("box", "fine", "split" or "bilinear"); returns them for the report.
 pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel, filter: &str) -> Result<serde_json::Value> {
     use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, distance_sweep_filtered, far_view_filtered};
     use fabric_runtime::cpu::CoarseFilter;
