@@ -206,9 +206,11 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         cell_o[k] = 0.0;
         cell_n[k] = 0u;
     }
-    for (uint k = 0u; k < all_rays * 2u; ++k) {
-        uint ray = k / 2u;
-        uint lk = k % 2u;
+    // Each ray's levels in turn (a coverage ray may blend where a shading ray does not).
+    uint max_levels = max(fly_levels, cover_levels);
+    for (uint k = 0u; k < all_rays * max_levels; ++k) {
+        uint ray = k / max_levels;
+        uint lk = k % max_levels;
         bool cover = ray >= box_rays;
         uint levels = cover ? cover_levels : fly_levels;
         if (lk >= levels) {
