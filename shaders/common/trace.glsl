@@ -263,10 +263,8 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         float opacity = 0.0;
         vec3 rgb = vec3(0.0);
         for (uint k = 0u; k < box_rays; ++k) {
-            opacity += 1.0 - box_t[k];
-        }
-        for (uint k = 0u; k < box_rays; ++k) {
             rgb += box_rgb[k];
+            opacity += 1.0 - box_t[k];
         }
         vec3 mean_colour = opacity > 1e-4 ? rgb / opacity : vec3(0.0);
         fly_radiance = vec3(0.0);

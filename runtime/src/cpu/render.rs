@@ -485,12 +485,10 @@ impl<'a> Scene<'a> {
         let fly = linear_levels(fly_grid.lambda, last);
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         // `Split`: the coverage from the fine grid, where both grids spread.
-        let cover_grid = fly_box_grid(major, n, bias, self.options.coarse_filter.cover_grid());
-        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0 && cover_grid.spread > 0.0).then(|| FlyCover {
-            fly: linear_levels(cover_grid.lambda, last),
-            axes: (axis * cover_grid.spread, minor_axis * cover_grid.spread),
-            taps: (cover_grid.taps_major, cover_grid.taps_minor),
-        });
+        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0)
+            .then(|| fly_box_grid(major, n, bias, self.options.coarse_filter.cover_grid()))
+            .filter(|c| c.spread > 0.0)
+            .map(|c| FlyCover { fly: linear_levels(c.lambda, last), axes: (axis * c.spread, minor_axis * c.spread), taps: (c.taps_major, c.taps_minor) });
         let Some(grid) = box_grid(major, minor, n, lambda, bias, g) else {
             // With a grid, level 0 alone up to [`LEVEL0_REACH`] texels (λ ≤ 1 here);
             // without one, Vulkan's linear-mip blend.
@@ -690,7 +688,7 @@ impl<'a> Scene<'a> {
         let mut fly_rays: Vec<f32> = Vec::new();
         // ... and where each met the surface (None: it missed or ran out of steps).
         let mut fly_hits: Vec<Option<Vec3>> = Vec::new();
-        // ... and each one's radiance and transmittance (for `Split`'s colours).
+        // ... and with `Split`, each one's radiance and transmittance (its colour).
         let mut box_rays: Vec<(Vec3, f32)> = Vec::new();
         for k in 0..ga * gb {
             let (r, t_end) = if ga * gb == 1 {
@@ -711,7 +709,9 @@ impl<'a> Scene<'a> {
             }
             if ga * gb > 1 {
                 fly_rays.push(f.transmittance);
-                box_rays.push((f.radiance, f.transmittance));
+                if mix.cover.is_some() {
+                    box_rays.push((f.radiance, f.transmittance));
+                }
             }
             fly.radiance += f.radiance * share;
             fly.transmittance += f.transmittance * share;
@@ -740,8 +740,8 @@ impl<'a> Scene<'a> {
                 }
                 // Radiance per unit of opacity: each box ray's own, the pixel's where its
                 // ray met nothing the fine rays of its cell met.
-                let opacity: f32 = box_rays.iter().map(|(_, t)| 1.0 - t).sum();
-                let mean_colour = if opacity > 1e-4 { box_rays.iter().map(|(f, _)| *f).sum::<Vec3>() / opacity } else { Vec3::ZERO };
+                let (radiance, opacity) = box_rays.iter().fold((Vec3::ZERO, 0.0f32), |(r, o), (f, t)| (r + *f, o + (1.0 - t)));
+                let mean_colour = if opacity > 1e-4 { radiance / opacity } else { Vec3::ZERO };
                 fly.radiance = Vec3::ZERO;
                 for ((f, t), &(o_sum, n)) in box_rays.iter().zip(&cell_opacity) {
                     let o = 1.0 - t;
