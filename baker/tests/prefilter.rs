@@ -652,10 +652,12 @@ fn the_far_view_check_measures_the_coarse_filter_it_is_given() {
         let default = far_view(&chain, polar, 8).unwrap();
         let boxed = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Box).unwrap();
         let fine = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Fine).unwrap();
-        assert_eq!(default, boxed, "the default check is the box filter's");
+        let split = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Split).unwrap();
+        assert_eq!(default, split, "the default check is the split filter's");
         // The truth and level 0 do not depend on the filter; the chain does.
         assert_eq!((fine.level0, fine.truth_noise), (boxed.level0, boxed.truth_noise));
         assert!(fine.chain.is_finite() && fine.chain != boxed.chain, "{polar}°: fine {} box {}", fine.chain, boxed.chain);
+        assert!(split.chain.is_finite() && split.chain != boxed.chain, "{polar}°: split {} box {}", split.chain, boxed.chain);
     }
 }
 

@@ -6,7 +6,8 @@
 //!
 //! `cargo run --release -p fabric-runtime --example bench_gpu_render [MODEL.hyb|N]`: a
 //! model file, or a synthetic N×N model (default 512); `--env-only` times only the
-//! environment light. GPU time from timestamps around frames recorded back to back
+//! environment light (and the far view by coarse filter), `--filters-only` only the far view
+//! by coarse filter, under one light and under the sky. GPU time from timestamps around frames recorded back to back
 //! (`HybridPass::render_back_to_back`, about 0.2 s of them), the median of 3 runs.
 
 use std::time::Instant;
@@ -52,6 +53,10 @@ fn main() {
     let far = |w, h| Camera { origin: c + Vec3::new(0.0, -3.0, 2.0) * span, target: c, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: w, height: h };
     let lights = [Light::directional(Vec3::new(-0.3, 0.4, 1.0), Vec3::splat(1.0)), Light::Point { position: c + Vec3::new(0.3, -0.2, 0.5) * span, intensity: Vec3::splat(0.5 * span * span) }];
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    if args.iter().any(|a| a == "--filters-only") {
+        filter_times(&pass, &g, &far, &lights, &opts);
+        return;
+    }
     if !env_only {
         frame_times(&pass, &g, &close, &far, &lights, &opts);
     }
@@ -83,16 +88,22 @@ fn frame_times(pass: &HybridPass, g: &GpuHybridModel, close: &dyn Fn(u32, u32) -
     let far0 = median_ms(pass, g, &far(640, 360), &lights[..1], &CpuRenderOptions { level: fabric_runtime::cpu::LevelChoice::Fixed(0), ..opts.clone() }, None).0;
     let farc = median_ms(pass, g, &far(640, 360), &lights[..1], &CpuRenderOptions { coarse_relief: true, ..opts.clone() }, None).0;
     println!("  far view, automatic levels: {farv:.2} ms; level 0 forced: {far0:.2} ms; coarse relief: {farc:.2} ms");
-    // What decides the coarse filter's default (baker/PREFILTER_MEASUREMENTS.md, "What is
-    // left"): the finer grid is 2-3x slower on the CPU and far more accurate at a few
-    // texels per pixel, the split filter (its coverage alone from the finer grid) about
-    // 1.2-1.5x and half as much more accurate; the box is the default.
+    // What decided the coarse filter's default (baker/PREFILTER_MEASUREMENTS.md, "The
+    // split filter as the default"): the finer grid is 2-3x slower on the CPU and far more
+    // accurate at a few texels per pixel, the split filter (its coverage alone from the
+    // finer grid, unshaded) about 1.2-1.5x and half as much more accurate; split is the
+    // default.
+    println!("  far view by coarse filter: {}", far_by_filter(pass, g, &far(640, 360), &lights[..1], opts));
+}
+
+/// The far view's frame time under each coarse filter, and each over the box's.
+fn far_by_filter(pass: &HybridPass, g: &GpuHybridModel, cam: &Camera, lights: &[Light], opts: &CpuRenderOptions) -> String {
     use fabric_runtime::cpu::CoarseFilter;
-    let by_filter: Vec<String> = [("box", CoarseFilter::Box), ("fine", CoarseFilter::Fine), ("split", CoarseFilter::Split), ("bilinear", CoarseFilter::Bilinear)]
+    let ms: Vec<(&str, f64)> = [("box", CoarseFilter::Box), ("split", CoarseFilter::Split), ("fine", CoarseFilter::Fine), ("bilinear", CoarseFilter::Bilinear)]
         .into_iter()
-        .map(|(name, coarse_filter)| format!("{name} {:.2} ms", median_ms(pass, g, &far(640, 360), &lights[..1], &CpuRenderOptions { coarse_filter, ..opts.clone() }, None).0))
+        .map(|(name, coarse_filter)| (name, median_ms(pass, g, cam, lights, &CpuRenderOptions { coarse_filter, ..opts.clone() }, None).0))
         .collect();
-    println!("  far view by coarse filter: {}", by_filter.join(", "));
+    ms.iter().map(|(name, t)| format!("{name} {t:.2} ms ({:.2}x)", t / ms[0].1)).collect::<Vec<_>>().join(", ")
 }
 
 /// The built-in sky against one directional light.
@@ -118,4 +129,19 @@ fn env_times(pass: &HybridPass, g: &GpuHybridModel, close: &dyn Fn(u32, u32) -> 
             env_nofly / dir_nofly
         );
     }
+    filter_times(pass, g, far, lights, opts);
+}
+
+/// What the coarse filter costs where it matters: the far view, under one light and under
+/// the sky (the split filter's extra rays are unshaded, the fine filter's are shaded:
+/// under the sky each node they cross is an SG mixture).
+fn filter_times(pass: &HybridPass, g: &GpuHybridModel, far: &dyn Fn(u32, u32) -> Camera, lights: &[Light], opts: &CpuRenderOptions) {
+    let map = Sky::default().env_map(EnvMapOptions::default()).expect("the built-in sky");
+    let sky = PrefilteredEnv::with_lights(&map, ExtractOptions::default()).expect("the sky prefiltered");
+    let sun = sky.lights.clone();
+    let env_opts = CpuRenderOptions { env: Some(EnvLight::new(sky)), ..opts.clone() };
+    let cam = far(640, 360);
+    println!("\nfar view {}x{} by coarse filter (each over the box's):", cam.width, cam.height);
+    println!("  directional: {}", far_by_filter(pass, g, &cam, &lights[..1], opts));
+    println!("  sky: {}", far_by_filter(pass, g, &cam, &sun, &env_opts));
 }

@@ -106,7 +106,7 @@ pub struct PrefilterCmdArgs {
     #[arg(long)]
     pub check: bool,
     /// The renderer's coarse filter that --check measures (as `render --coarse-filter`).
-    #[arg(long, default_value = "box", value_parser = ["box", "fine", "split", "bilinear"])]
+    #[arg(long, default_value = "split", value_parser = ["box", "fine", "split", "bilinear"])]
     pub check_filter: String,
     #[command(flatten)]
     pub prefilter: PrefilterArgs,
