@@ -7,7 +7,7 @@
 #![cfg(feature = "gpu")]
 
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode, render, render_with_stats};
-use fabric_runtime::cpu::render::fine_grid_traced;
+use fabric_runtime::cpu::level::fine_grid_traced;
 use fabric_runtime::gpu::{GpuRenderError, HybridPass, Variant};
 use fabric_runtime::hybrid::{FlyawayInput, HybridModel, examples};
 use fabric_runtime::image::Image;

@@ -1,8 +1,10 @@
 // level.glsl — which levels of the mip chain shade a pixel, from its footprint where its
 // ray meets the surface (DESIGN.md §7; the rule of LevelChoice in runtime/src/cpu/mod.rs).
 //
-// Twin: runtime/src/cpu/render.rs (LevelMix, linear_levels, MAX_ANISOTROPY,
-// FILTER_OFFSET, FILTER_GRID, box_grid, Scene::level_mix, Scene::footprint_axes_at). The footprint comes from
+// Twin: runtime/src/cpu/level.rs (LevelMix, linear_levels, MAX_ANISOTROPY, FILTER_OFFSET,
+// FILTER_GRID, box_grid, grid_taps, fly_box_grid, fine_grid_spread, level0_grid_taps,
+// fine_grid_traced) and runtime/src/cpu/render.rs (Scene::level_mix, Scene::level_mix_axes,
+// Scene::footprint_axes_at). The footprint comes from
 // the rays through the neighbouring pixels, as on the CPU, not from screen-space
 // derivatives: the two renderers choose the same levels.
 #ifndef LEVEL_GLSL

@@ -24,6 +24,7 @@ pub mod edits;
 pub mod env_shading;
 pub mod flyaways;
 pub mod heightfield;
+pub mod level;
 pub mod probe;
 pub mod render;
 pub mod shading;
@@ -62,20 +63,20 @@ pub enum ShadowMode {
     Off,
 }
 
-/// How coarse levels (≥ 1) are filtered (render.rs, `box_grid`; runtime/HYBRID_FORMAT.md §6).
+/// How coarse levels (≥ 1) are filtered (level.rs, `box_grid`; runtime/HYBRID_FORMAT.md §6).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CoarseFilter {
-    /// A grid of `render::FILTER_GRID` lookups per axis one level finer, spread to keep
-    /// the pixel's variance (`render::box_grid`), and the flyaways marched along as many
+    /// A grid of `level::FILTER_GRID` lookups per axis one level finer, spread to keep
+    /// the pixel's variance (`level::box_grid`), and the flyaways marched along as many
     /// parallel rays over the footprint, each to its own surface (min(N, 2)·G along a
-    /// grazing footprint's major axis, at the lookups' level; `render::fly_box_grid`): closer
+    /// grazing footprint's major axis, at the lookups' level; `level::fly_box_grid`): closer
     /// to the pixel's box (baker/PREFILTER_MEASUREMENTS.md, "The box filter"), at a
     /// multiple of the far views' frame time (runtime/GPU_MEASUREMENTS.md).
     Box,
     /// One bilinear lookup per anisotropic tap, as wide as the pixel, and one flyaway
     /// ray at the footprint's level: cheaper far away.
     Bilinear,
-    /// The surface as `Box`, the flyaways along a grid of `render::FLY_FINE_GRID` rays
+    /// The surface as `Box`, the flyaways along a grid of `level::FLY_FINE_GRID` rays
     /// per axis through voxels as many times finer: sparse, bright fibres need a finer
     /// box than the dense surface (far views 12% lower summed over the presets, felt at
     /// 70° 17.6 → 12.0%), at 2–3× a wholly distant frame's time on the CPU
@@ -96,7 +97,7 @@ impl CoarseFilter {
     /// Lookups per axis of the surface's grid (1: none).
     pub fn grid(self) -> u32 {
         match self {
-            CoarseFilter::Box | CoarseFilter::Fine | CoarseFilter::Split => render::FILTER_GRID,
+            CoarseFilter::Box | CoarseFilter::Fine | CoarseFilter::Split => level::FILTER_GRID,
             CoarseFilter::Bilinear => 1,
         }
     }
@@ -105,16 +106,16 @@ impl CoarseFilter {
     /// grid; else the shading grid's own, [`CoarseFilter::fly_grid`]).
     pub fn cover_grid(self) -> u32 {
         match self {
-            CoarseFilter::Split => render::FLY_FINE_GRID,
+            CoarseFilter::Split => level::FLY_FINE_GRID,
             f => f.fly_grid(),
         }
     }
 
-    /// Rays per axis of the flyaways' grid (1: none; `render::fly_box_grid`).
+    /// Rays per axis of the flyaways' grid (1: none; `level::fly_box_grid`).
     pub fn fly_grid(self) -> u32 {
         match self {
-            CoarseFilter::Box | CoarseFilter::Split => render::FILTER_GRID,
-            CoarseFilter::Fine => render::FLY_FINE_GRID,
+            CoarseFilter::Box | CoarseFilter::Split => level::FILTER_GRID,
+            CoarseFilter::Fine => level::FLY_FINE_GRID,
             CoarseFilter::Bilinear => 1,
         }
     }
