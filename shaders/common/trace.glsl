@@ -109,6 +109,30 @@ void lookup_transmittances(vec2 axis, uint taps, vec2 minor_axis, uint taps_mino
 // top plane if it misses). The two levels of a blend are loops, not two
 // calls: one inlined copy of each march and of the shading.
 // Radiance where a ray along d misses the tile (twin: Scene::trace_mixed's background).
+// The split filter's flyaway radiance: each of the `n` shading rays' colour (radiance
+// `rgb[k]` per unit of its opacity 1 - `t[k]`) times the mean opacity of the coverage rays
+// in its cell (`cell_o[k]` summed over `cell_n[k]` rays; the ray's own where none fell
+// in it), averaged over the cells; the pixel's mean colour where a shading ray met
+// nothing its cell's coverage rays met. Twin: spread_colours (runtime/src/cpu/render.rs).
+vec3 spread_colours(uint n, vec3 rgb[MAX_SPLIT_RAYS], float t[MAX_SPLIT_RAYS], float cell_o[MAX_SPLIT_RAYS], uint cell_n[MAX_SPLIT_RAYS]) {
+    float opacity = 0.0;
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < n; ++k) {
+        sum += rgb[k];
+        opacity += 1.0 - t[k];
+    }
+    vec3 mean_colour = opacity > 1e-4 ? sum / opacity : vec3(0.0);
+    float share = 1.0 / float(max(n, 1u));
+    vec3 radiance = vec3(0.0);
+    for (uint k = 0u; k < n; ++k) {
+        float o = 1.0 - t[k];
+        float o_cover = cell_n[k] > 0u ? cell_o[k] / float(cell_n[k]) : o;
+        vec3 colour = o > 1e-4 ? rgb[k] / o : mean_colour;
+        radiance += colour * o_cover * share;
+    }
+    return radiance;
+}
+
 vec3 background(vec3 d) {
 #ifdef HYBRID_ENV
     if (HAS_ENV && params.env_info.y != 0u) {
@@ -258,22 +282,7 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         }
     }
     if (split) {
-        // Radiance per unit of opacity: each box ray's own, the pixel's where its ray met
-        // nothing the cover rays of its cell met.
-        float opacity = 0.0;
-        vec3 rgb = vec3(0.0);
-        for (uint k = 0u; k < box_rays; ++k) {
-            rgb += box_rgb[k];
-            opacity += 1.0 - box_t[k];
-        }
-        vec3 mean_colour = opacity > 1e-4 ? rgb / opacity : vec3(0.0);
-        fly_radiance = vec3(0.0);
-        for (uint k = 0u; k < box_rays; ++k) {
-            float o_box = 1.0 - box_t[k];
-            float o_cover = cell_n[k] > 0u ? cell_o[k] / float(cell_n[k]) : o_box;
-            vec3 colour = o_box > 1e-4 ? box_rgb[k] / o_box : mean_colour;
-            fly_radiance += colour * o_cover * share;
-        }
+        fly_radiance = spread_colours(box_rays, box_rgb, box_t, cell_o, cell_n);
         float sum = 0.0;
         for (uint k = 0u; k < cga * cgb; ++k) {
             sum += fly_t[k];

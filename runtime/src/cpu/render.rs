@@ -68,6 +68,28 @@ pub fn lookup_transmittances(offsets: &[Vec2], fly_t: &[f32], fly_axes: (Vec2, V
     if mean > 0.0 { t.iter().map(|x| x * mean_t / mean).collect() } else { vec![mean_t; t.len()] }
 }
 
+/// The split filter's flyaway radiance: each shading ray's colour (its radiance
+/// `box_rays[k].0` per unit of its opacity 1 − `box_rays[k].1`) times the mean opacity
+/// of the coverage rays in its cell (`cell_opacity[k]`: their summed opacity and count;
+/// the ray's own where none fell in it), averaged over the cells. Where a shading ray met
+/// nothing its cell's coverage rays met, the pixel's mean colour. Twin:
+/// `spread_colours` in shaders/common/trace.glsl.
+pub fn spread_colours(box_rays: &[(Vec3, f32)], cell_opacity: &[(f32, u32)]) -> Vec3 {
+    let (radiance, opacity) = box_rays.iter().fold((Vec3::ZERO, 0.0f32), |(r, o), (f, t)| (r + *f, o + (1.0 - t)));
+    let mean_colour = if opacity > 1e-4 { radiance / opacity } else { Vec3::ZERO };
+    let share = 1.0 / box_rays.len().max(1) as f32;
+    box_rays
+        .iter()
+        .zip(cell_opacity)
+        .map(|((f, t), &(o_sum, n))| {
+            let o = 1.0 - t;
+            let cover_o = if n > 0 { o_sum / n as f32 } else { o };
+            let colour = if o > 1e-4 { *f / o } else { mean_colour };
+            colour * cover_o * share
+        })
+        .sum()
+}
+
 /// One level's flyaways along a ray.
 struct FlyShade {
     radiance: Vec3,
@@ -443,17 +465,7 @@ impl<'a> Scene<'a> {
                     let cell = &mut cell_opacity[fly_cell(offset, fa, ga, fb, gb) as usize];
                     *cell = (cell.0 + 1.0 - t, cell.1 + 1);
                 }
-                // Radiance per unit of opacity: each box ray's own, the pixel's where its
-                // ray met nothing the fine rays of its cell met.
-                let (radiance, opacity) = box_rays.iter().fold((Vec3::ZERO, 0.0f32), |(r, o), (f, t)| (r + *f, o + (1.0 - t)));
-                let mean_colour = if opacity > 1e-4 { radiance / opacity } else { Vec3::ZERO };
-                fly.radiance = Vec3::ZERO;
-                for ((f, t), &(o_sum, n)) in box_rays.iter().zip(&cell_opacity) {
-                    let o = 1.0 - t;
-                    let fine_o = if n > 0 { o_sum / n as f32 } else { o };
-                    let colour = if o > 1e-4 { *f / o } else { mean_colour };
-                    fly.radiance += colour * fine_o * share;
-                }
+                fly.radiance = spread_colours(&box_rays, &cell_opacity);
                 fly.transmittance = rays.iter().sum::<f32>() / rays.len() as f32;
                 fly_rays = rays;
                 (c.axes, (ca, cb))
@@ -847,7 +859,7 @@ fn distinct_corners(corners: &[((u32, u32), f32)]) -> Vec<((u32, u32), f32)> {
 
 #[cfg(test)]
 mod tests {
-    use super::{FlyHits, Scene, distinct_corners, tap_offset};
+    use super::{FlyHits, Scene, distinct_corners, spread_colours, tap_offset};
     use crate::cpu::CpuRenderOptions;
     use crate::hybrid::{Tile, examples};
     use crate::scene::{Camera, Light};
@@ -927,5 +939,22 @@ mod tests {
         let once: f32 = d.iter().map(|&(ij, w)| w * f(ij)).sum();
         assert!((all - once).abs() <= 1e-5 * all.abs(), "{all} vs {once}");
         assert!(distinct_corners(&[]).is_empty());
+    }
+
+    #[test]
+    fn spread_colours_keep_each_cells_colour_and_take_its_coverage() {
+        // Two cells: a red shading ray of opacity 0.5 whose cell's coverage rays are
+        // opaque at 0.2 on average, and one that met nothing where its coverage rays met
+        // fibres (opacity 0.4): that cell takes the pixel's mean colour, red.
+        let red = Vec3::new(1.0, 0.0, 0.0);
+        let rays = [(0.5 * red, 0.5), (Vec3::ZERO, 1.0)];
+        let cells = [(0.4, 2u32), (1.2, 3u32)];
+        let r = spread_colours(&rays, &cells);
+        assert!((r - red * 0.5 * (0.2 + 0.4)).length() < 1e-6, "{r}");
+        // A cell without coverage rays keeps its shading ray's own opacity: the box filter's.
+        let r = spread_colours(&rays, &[(0.0, 0), (0.0, 0)]);
+        assert!((r - 0.25 * red).length() < 1e-6, "{r}");
+        // Nothing met anywhere: no light, no NaN.
+        assert_eq!(spread_colours(&[(Vec3::ZERO, 1.0); 4], &[(0.0, 4); 4]), Vec3::ZERO);
     }
 }
