@@ -275,7 +275,8 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.fine_axis_b = vec2(0.0);
     m.fine_taps_a = 1u;
     m.fine_taps_b = 1u;
-    // The split filter: the coverage from the finer grid, where both grids spread.
+    // The split filter: the coverage from the finer grid, where both grids spread and the
+    // shading rays march a coarse level (at level 0 the finer grid's voxels are theirs).
     m.cover_lo = m.fly_lo;
     m.cover_hi = m.fly_hi;
     m.cover_weight = 0.0;
@@ -285,7 +286,7 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.cover_taps_b = 0u;
     if (FLY_COVER_GRID != FLY_GRID) {
         FlyGrid cover = fly_box_grid(major, taps, bias, FLY_COVER_GRID);
-        if (fly_grid && cover.spread > 0.0) {
+        if (fly_grid && cover.spread > 0.0 && fly.level > 0.0) {
             linear_levels(cover.level, last, m.cover_lo, m.cover_hi, m.cover_weight);
             m.cover_axis_a = axis * cover.spread;
             m.cover_axis_b = minor_axis * cover.spread;

@@ -211,8 +211,12 @@ impl<'a> Scene<'a> {
         let fly_grid = fly_box_grid(major, n, bias, self.options.coarse_filter.fly_grid());
         let fly = linear_levels(fly_grid.lambda, last);
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
-        // `Split`: the coverage from the fine grid, where both grids spread.
-        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0)
+        // `Split`: the coverage from the fine grid, where both grids spread and the shading
+        // rays march a coarse level: at level 0 the finer grid's voxels are theirs, and its
+        // 16 rays only supersample them (the demo's sphere, 1–3 texels per pixel, cost 3×
+        // the box's frame on lavapipe with them; baker/PREFILTER_MEASUREMENTS.md, "The
+        // split filter as the default").
+        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0 && fly_grid.lambda > 0.0)
             .then(|| fly_box_grid(major, n, bias, self.options.coarse_filter.cover_grid()))
             .filter(|c| c.spread > 0.0)
             .map(|c| FlyCover { fly: linear_levels(c.lambda, last), axes: (axis * c.spread, minor_axis * c.spread), taps: (c.taps_major, c.taps_minor) });
