@@ -537,9 +537,10 @@ fn a_flyaway_grid_cell_holds_its_own_ray_and_lookups_keep_the_mean_transmittance
 #[test]
 fn the_split_filter_changes_only_the_flyaways_of_views_with_a_flyaway_grid() {
     // `CoarseFilter::Split`: the box grid's rays shaded, a 4 × 4 grid one level finer
-    // marched unshaded for the coverage (render.rs, FlyCover). A close-up (no flyaway
-    // grid) and a model without flyaways draw the box filter's image bit for bit; a far
-    // view of flyaways does not.
+    // marched unshaded for the coverage (render.rs, FlyCover) where the box grid's rays
+    // march a coarse level. A close-up (no flyaway grid), a view whose flyaway rays march
+    // level 0 and a model without flyaways draw the box filter's image bit for bit; a
+    // far view of flyaways does not.
     let model = examples::synthetic_model(32, 3);
     let lights = [Light::directional(Vec3::new(-0.3, 0.2, 1.0), Vec3::ONE)];
     let opts = |coarse_filter| CpuRenderOptions { periodic: true, coarse_filter, ..Default::default() };
@@ -549,6 +550,12 @@ fn the_split_filter_changes_only_the_flyaways_of_views_with_a_flyaway_grid() {
     let far = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 6.0, 32, 32);
     let at = |m: &fabric_runtime::hybrid::HybridModel, cam: &Camera, f| render(m, cam, &lights, &opts(f)).unwrap();
     assert_eq!(at(&model, &near, CoarseFilter::Split).pixels, at(&model, &near, CoarseFilter::Box).pixels);
+    // About one texel per pixel: the flyaways' grid spreads, but its rays march level 0,
+    // whose voxels a finer grid would only supersample: no coverage grid, the box's image.
+    let mid = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 1.0, 32, 32);
+    let m = Scene::new(&model, &mid, &lights, opts(CoarseFilter::Split)).unwrap().level_mix(16.5, 16.5, model.tile.top_z);
+    assert!(m.fly_taps.0 * m.fly_taps.1 > 1 && m.fly == (0, 0, 0.0) && m.cover.is_none(), "{m:?}");
+    assert_eq!(at(&model, &mid, CoarseFilter::Split).pixels, at(&model, &mid, CoarseFilter::Box).pixels);
     let scene = Scene::new(&model, &far, &lights, opts(CoarseFilter::Split)).unwrap();
     let m = scene.level_mix(16.5, 16.5, model.tile.top_z);
     let cover = m.cover.expect("a far view has a coverage grid");
