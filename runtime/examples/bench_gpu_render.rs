@@ -88,12 +88,6 @@ fn frame_times(pass: &HybridPass, g: &GpuHybridModel, close: &dyn Fn(u32, u32) -
     let far0 = median_ms(pass, g, &far(640, 360), &lights[..1], &CpuRenderOptions { level: fabric_runtime::cpu::LevelChoice::Fixed(0), ..opts.clone() }, None).0;
     let farc = median_ms(pass, g, &far(640, 360), &lights[..1], &CpuRenderOptions { coarse_relief: true, ..opts.clone() }, None).0;
     println!("  far view, automatic levels: {farv:.2} ms; level 0 forced: {far0:.2} ms; coarse relief: {farc:.2} ms");
-    // What decided the coarse filter's default (baker/PREFILTER_MEASUREMENTS.md, "The
-    // split filter as the default"): the finer grid is 2-3x slower on the CPU and far more
-    // accurate at a few texels per pixel, the split filter (its coverage alone from the
-    // finer grid, unshaded) about 1.2-1.5x and half as much more accurate; split is the
-    // default.
-    println!("  far view by coarse filter: {}", far_by_filter(pass, g, &far(640, 360), &lights[..1], opts));
 }
 
 /// The far view's frame time under each coarse filter, and each over the box's.
@@ -134,7 +128,8 @@ fn env_times(pass: &HybridPass, g: &GpuHybridModel, close: &dyn Fn(u32, u32) -> 
 
 /// What the coarse filter costs where it matters: the far view, under one light and under
 /// the sky (the split filter's extra rays are unshaded, the fine filter's are shaded:
-/// under the sky each node they cross is an SG mixture).
+/// under the sky each node they cross is an SG mixture). What decided the default,
+/// split (baker/PREFILTER_MEASUREMENTS.md, "The split filter as the default").
 fn filter_times(pass: &HybridPass, g: &GpuHybridModel, far: &dyn Fn(u32, u32) -> Camera, lights: &[Light], opts: &CpuRenderOptions) {
     let map = Sky::default().env_map(EnvMapOptions::default()).expect("the built-in sky");
     let sky = PrefilteredEnv::with_lights(&map, ExtractOptions::default()).expect("the sky prefiltered");
