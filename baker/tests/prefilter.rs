@@ -3,7 +3,7 @@
 
 use fabric_baker::prefilter::far_view::far_camera_at;
 use fabric_baker::prefilter::flyaways::Coverage;
-use fabric_baker::prefilter::lobe_fit::{Candidate, FitSettings, Footprint, fit_footprint};
+use fabric_baker::prefilter::lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
 use fabric_baker::prefilter::pairs::fit_pairs;
 use fabric_baker::prefilter::{PrefilterError, PrefilterOptions, prefilter};
 use fabric_baker::progress::NoProgress;
@@ -16,7 +16,7 @@ use fabric_runtime::scene::{Camera, Light, Projection};
 use glam::{Vec2, Vec3};
 
 fn settings() -> FitSettings {
-    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40, free_frames: true, validation: 0 }
+    FitSettings { tolerance: 0.01, max_lobes: 8, reading: BrdfReading::Bounded, diffuse: fabric_runtime::brdf::DiffuseLaw::Lambert, evals_per_dim: 40, free_frames: true, validation: 0, sweep: false }
 }
 
 /// The mean response of `candidates` (equal shares) at each pair, with k_d = 0.
@@ -94,6 +94,33 @@ fn two_lobes_of_crossing_yarns_keep_both_tangents_when_frames_are_free() {
     for axis in [Vec3::X, Vec3::Y] {
         assert!(tangents.iter().any(|t| t.dot(axis).abs() > 0.98), "no lobe along {axis}: {tangents:?}");
     }
+}
+
+#[test]
+fn the_lobe_sweep_fits_past_the_budget_without_changing_the_kept_fit() {
+    // Six distinct lobes (three normals × warp and weft): two lobes cannot hold them,
+    // eight can. The sweep measures what a larger budget buys (past the free-frame
+    // budget, with the moments' frames, as that budget's pass fits them); the texel kept
+    // is the budget's, bit for bit.
+    let pairs = fit_pairs(256, 4);
+    let mut candidates = Vec::new();
+    for n in [Vec3::new(0.4, 0.0, 1.0), Vec3::new(-0.4, 0.1, 1.0), Vec3::new(0.0, -0.4, 1.0)] {
+        candidates.push(candidate(n, Vec3::X, 0.08));
+        candidates.push(candidate(n, Vec3::Y, 0.08));
+    }
+    let target = target_of(&candidates, &pairs);
+    let fp = Footprint { candidates: &candidates, kd_normal: Vec3::ZERO, target: &target };
+    let two = FitSettings { max_lobes: 2, tolerance: 0.001, ..settings() };
+    let plain = fit_footprint(&fp, &pairs, &two);
+    let swept = fit_footprint(&fp, &pairs, &FitSettings { sweep: true, ..two });
+    assert_eq!(plain, CoarseFit { error_by_count: plain.error_by_count, ..swept.clone() }, "the sweep changed the kept fit");
+    let e = swept.error_by_count;
+    // Without the sweep, the counts past the budget repeat its error.
+    assert!(plain.error_by_count[2..].iter().all(|&x| x == plain.error_by_count[1]), "{:?}", plain.error_by_count);
+    assert_eq!(e[..2], plain.error_by_count[..2]);
+    assert!(e.windows(2).all(|w| w[1] <= w[0]), "never worse with more lobes allowed: {e:?}");
+    // Seven groups (the diffuse lobe and the six) hold the footprint exactly.
+    assert!(e[7] < 0.01 * e[1], "8 lobes {} against 2 lobes {}", e[7], e[1]);
 }
 
 fn flat_tile(n: u32) -> Tile {

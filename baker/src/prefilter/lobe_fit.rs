@@ -90,6 +90,11 @@ pub struct FitSettings {
     /// The last `validation` pairs (and targets) are held out of every fit: a frame
     /// refinement is kept only if it also lowers the error there. 0: none held out.
     pub validation: usize,
+    /// Go on past `max_lobes` to 4 and 8 lobes (while above the tolerance, frames from
+    /// the moments, as a budget past [`FREE_FRAME_LOBES`] fits them) for
+    /// [`CoarseFit::error_by_count`] alone: the lobe-count sweep of the report. The
+    /// returned fit is the budget's either way.
+    pub sweep: bool,
 }
 
 /// A fitted coarse texel.
@@ -102,8 +107,9 @@ pub struct CoarseFit {
     pub lobes: Vec<(ClothLobe, Vec3, Vec3)>,
     /// E of the kept fit.
     pub error: f32,
-    /// The least E found with at most 1, 2, … 8 lobes (the search stops at the
-    /// tolerance, so entries past the kept count repeat it).
+    /// The least E found with at most 1, 2, … 8 lobes: the doubling tries 1, 2, 4, 8
+    /// and stops at the tolerance, so the counts it skips repeat the next fewer; past
+    /// `max_lobes` only with [`FitSettings::sweep`] (else they repeat the budget's).
     pub error_by_count: [f32; MAX_LOBES],
 }
 
@@ -499,7 +505,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
     let mut fits: Vec<CoarseFit> = Vec::new();
     let mut by_count = [f32::INFINITY; MAX_LOBES];
     let max_lobes = s.max_lobes.clamp(1, MAX_LOBES);
-    let mut counts: Vec<usize> = [1usize, 2, 4, 8].iter().map(|&g| g.min(max_lobes)).collect();
+    let mut counts: Vec<usize> = [1usize, 2, 4, 8].iter().map(|&g| if s.sweep { g } else { g.min(max_lobes) }).collect();
     counts.dedup();
     let mut tried = 0;
     let all: Vec<&Candidate> = fp.candidates.iter().collect();
@@ -508,7 +514,14 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
     // frame, with the moments of the whole footprint. A group's normal is not the
     // diffuse normal: measured 13% against 4% on bumpy footprints.
     let diffuse_group = in_diffuse_frame(if all.is_empty() { GroupMoments { n: kd_n, t: cloth_frame(kd_n, Vec3::X).t, beta: 0.1, gamma: 0.0 } } else { moments(&all, kd_n) }, kd_n);
+    // The sweep's fits past the budget: their errors only (budget_error: the least E
+    // within the budget, where the sweep goes on from).
+    let mut budget_error = f32::INFINITY;
     for g in counts {
+        let past_budget = g > max_lobes;
+        if past_budget && budget_error <= s.tolerance {
+            break;
+        }
         // g lobes: the diffuse lobe and g − 1 groups of the footprint's lobes.
         let (assign, count) = if g > 1 { group_candidates(fp.candidates, g - 1) } else { (Vec::new(), 0) };
         if g > 1 && count < tried {
@@ -519,7 +532,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
         let mut groups = vec![diffuse_group];
         groups.extend((0..count).map(|k| group_moments(fp.candidates, &assign, k, kd_n)));
         let (mut sol, mut widths, mut groups) = fit_widths(groups, eta, a, pairs, &balance, target, target2, s);
-        if s.free_frames && max_lobes <= FREE_FRAME_LOBES && sol.error2.sqrt() as f32 > s.tolerance && s.evals_per_dim > 0 {
+        if !past_budget && s.free_frames && max_lobes <= FREE_FRAME_LOBES && sol.error2.sqrt() as f32 > s.tolerance && s.evals_per_dim > 0 {
             // Each lobe's frame free as well: a twist of its tangent about its normal,
             // and (lobes past the diffuse one) a tilt of the normal. Moments put the
             // lobes of one group on the group's principal axis, which a footprint of
@@ -555,8 +568,12 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
             }
         }
         let error = sol.error2.max(0.0).sqrt() as f32;
-        let previous = fits.iter().map(|f| f.error).fold(f32::INFINITY, f32::min);
+        let previous = fits.iter().map(|f| f.error).fold(budget_error, f32::min);
         by_count[g - 1] = error.min(previous);
+        if past_budget {
+            budget_error = by_count[g - 1];
+            continue;
+        }
         let mut lobes: Vec<(ClothLobe, Vec3, Vec3)> = Vec::new();
         for (k, m) in groups.iter().enumerate() {
             // Lobes NNLS switched off are dropped, except lobe 0 (the diffuse frame).
@@ -567,6 +584,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
         }
         let fit = CoarseFit { kd: sol.kd, eta, a, lobes, error, error_by_count: [0.0; MAX_LOBES] };
         fits.push(fit);
+        budget_error = budget_error.min(error);
         if error <= s.tolerance {
             break;
         }

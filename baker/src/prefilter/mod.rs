@@ -40,6 +40,7 @@ use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface,
 
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission};
 use crate::progress::{Progress, stage};
+use crate::reference::rng::mix64;
 use lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
 use pairs::{Pair, fit_pairs};
 
@@ -53,6 +54,10 @@ pub const DEFAULT_MAX_LOBES: usize = 2;
 /// Pairs held out of each coarse texel's fit to check its frame refinement
 /// ([`lobe_fit::FitSettings::validation`]).
 pub const VALIDATION_PAIRS: usize = 64;
+/// Most texels per level that the lobe-count sweep of the report fits past the lobe
+/// budget (`LevelReport::error_by_lobes`): a mean over 512 texels is within a few percent
+/// of the level's, at a fraction of the cost of every texel at 4 and 8 lobes.
+pub const LOBE_SWEEP_TEXELS: u32 = 512;
 
 /// How to prefilter.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,9 +138,14 @@ pub struct LevelReport {
     pub fit_error: f64,
     /// 95th percentile of E over texels.
     pub fit_error_p95: f64,
-    /// Mean E with at most 1, 2, … 8 lobes allowed (from the same pass; counts the
-    /// doubling skips repeat the next fewer).
+    /// Mean E with at most 1, 2, … 8 lobes allowed, over `lobe_sweep_texels` texels
+    /// spread over the level: the pass's own fits up to the budget, then the same pass
+    /// gone on to 4 and 8 lobes on those texels (`FitSettings::sweep`). The counts the
+    /// doubling skips (3, 5–7) repeat the next fewer.
     pub error_by_lobes: Vec<f64>,
+    /// How many texels the lobe-count sweep fitted (every texel of a level of up to
+    /// [`LOBE_SWEEP_TEXELS`], about that many chosen by a hash beyond).
+    pub lobe_sweep_texels: usize,
     pub surface_bytes: u64,
     pub flyaway_nodes: usize,
     /// Of those, the nodes whose fibres split in two groups of axes (format 1.8).
@@ -216,7 +226,9 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     if validation > 0 {
         pairs.extend(fit_pairs(validation, opts.seed ^ 0x5eed_0f_f0a1));
     }
-    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim, free_frames, validation };
+    let settings = FitSettings { tolerance: opts.tolerance, max_lobes: opts.max_lobes, reading: model.meta.reading, diffuse: model.meta.diffuse, evals_per_dim: opts.evals_per_dim, free_frames, validation, sweep: false };
+    // The lobe-count sweep's texels go on past the budget (FitSettings::sweep).
+    let sweep_settings = FitSettings { sweep: true, ..settings };
     let mut out = model.clone();
     out.levels.truncate(1);
     let mut report = PrefilterReport { pairs: fitted_pairs, tolerance: opts.tolerance, level0_bytes: level_bytes(&model.levels[0]), ..Default::default() };
@@ -254,6 +266,10 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             }
             c
         };
+        // About LOBE_SWEEP_TEXELS texels of the level, chosen by a hash (a regular
+        // stride would alias with the weave's period).
+        let sweep_stride = (lw * lh).div_ceil(LOBE_SWEEP_TEXELS).max(1) as u64;
+        let in_sweep = |index: u32| mix64(((level as u64) << 32) | index as u64) % sweep_stride == 0;
         let fits: Vec<(CoarseFit, Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>)> = (0..lw * lh)
             .into_par_iter()
             .map(|index| {
@@ -281,7 +297,8 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                     }
                 }
                 let target: Vec<Vec3> = acc.iter().map(TargetAcc::value).collect();
-                let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal, target: &target }, &pairs, &settings);
+                let swept = in_sweep(index);
+                let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal, target: &target }, &pairs, if swept { &sweep_settings } else { &settings });
                 let trans = bsdf.then(|| {
                     let mut t_acc = vec![Vec3::ZERO; nt];
                     for &(ci, cj, n) in &kids {
@@ -313,7 +330,8 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let mut trans_records = Vec::new();
         let mut trans_targets = Vec::new();
         let mut trans_error = 0f64;
-        for (fit, acc, trans) in fits {
+        let mut swept = 0usize;
+        for (index, (fit, acc, trans)) in fits.into_iter().enumerate() {
             table.push_framed(fit.kd, fit.eta, fit.a, &fit.lobes);
             targets.extend(acc);
             if let Some((t, t_acc, e)) = trans {
@@ -322,8 +340,11 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                 trans_error += e;
             }
             errors.push(fit.error as f64);
-            for (acc, e) in by_lobes.iter_mut().zip(fit.error_by_count) {
-                *acc += e as f64;
+            if in_sweep(index as u32) {
+                swept += 1;
+                for (acc, e) in by_lobes.iter_mut().zip(fit.error_by_count) {
+                    *acc += e as f64;
+                }
             }
             lobes_total += fit.lobes.len();
             lobes_max = lobes_max.max(fit.lobes.len());
@@ -358,7 +379,8 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             mean_lobes: lobes_total as f64 / n,
             fit_error,
             fit_error_p95: p95,
-            error_by_lobes: by_lobes.iter().map(|e| e / n).collect(),
+            error_by_lobes: by_lobes.iter().map(|e| e / swept.max(1) as f64).collect(),
+            lobe_sweep_texels: swept,
             surface_bytes: l.surface_bytes(),
             flyaway_nodes: l.flyaways.as_ref().map_or(0, |f| f.nodes.len()),
             flyaway_two_groups: l.flyaways.as_ref().and_then(|f| f.groups.as_ref()).map_or(0, |g| g.iter().filter(|g| g.share > 0).count()),

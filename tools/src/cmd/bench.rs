@@ -429,7 +429,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let lobes: Vec<f64> = bake["prefilter"]["levels"][0]["error_by_lobes"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect()).unwrap_or_default();
         let level1_bytes = bake["prefilter"]["levels"][0]["surface_bytes"].as_f64().unwrap_or(0.0);
         let mean_lobes = bake["prefilter"]["levels"][0]["mean_lobes"].as_f64().unwrap_or(1.0).max(1.0);
-        // The prefilter's one pass gives the error with 1..8 lobes allowed; the "time" axis
+        // The prefilter's pass gives the error with 1..8 lobes allowed (on up to 512 texels
+        // a level it goes on past the budget: LevelReport::error_by_lobes); the "time" axis
         // is the level's size at that budget (16 + 16·L bytes per texel), in KB.
         let texels = level1_bytes / (16.0 + 16.0 * mean_lobes);
         sweeps.push(Sweep { name: "lobes_per_level", what: "lobes", time_unit: "KB", rows: lobes.iter().enumerate().map(|(i, e)| Row { label: format!("{}", i + 1), time: texels * (16.0 + 16.0 * (i + 1) as f64) / 1e3, error: *e }).collect() });

@@ -144,11 +144,11 @@ pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel, filter: &str) ->
 /// Prints a report's table.
 pub fn print_report(r: &PrefilterReport) {
     println!("prefilter: {} direction pairs, tolerance {:.1}%", r.pairs, 100.0 * r.tolerance);
-    println!("  level  size       lobes mean/max  fit error mean/p95  error with 1/2/4/8 lobes     surface B  flyaways   time");
+    println!("  level  size       lobes mean/max  fit error mean/p95  error with 1/2/4/8 lobes (texels)     surface B  flyaways   time");
     for l in &r.levels {
         let e = |n: usize| l.error_by_lobes.get(n - 1).map_or(f64::NAN, |e| 100.0 * e);
         println!(
-            "  {:>5}  {:>4}x{:<4}  {:>5.2} / {:<3}     {:>6.2}% / {:<6.2}%   {:>5.1}/{:>5.1}/{:>5.1}/{:>5.1}%   {:>10}  {:>8}  {:>5.1} s",
+            "  {:>5}  {:>4}x{:<4}  {:>5.2} / {:<3}     {:>6.2}% / {:<6.2}%   {:>5.1}/{:>5.1}/{:>5.1}/{:>5.1}% ({:>4})   {:>10}  {:>8}  {:>5.1} s",
             l.level,
             l.width,
             l.height,
@@ -160,6 +160,7 @@ pub fn print_report(r: &PrefilterReport) {
             e(2),
             e(4),
             e(8),
+            l.lobe_sweep_texels,
             l.surface_bytes,
             l.flyaway_nodes,
             l.seconds
