@@ -18,12 +18,8 @@ pub mod stream {
     pub const YARN: u64 = 7;
 }
 
-#[inline]
-pub fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
+/// The baker's one SplitMix64 finalizer (the reference path tracer's streams use it too).
+pub use crate::reference::rng::mix64;
 
 /// A hash of a key: deterministic, well mixed.
 #[inline]

@@ -406,10 +406,7 @@ pub(crate) fn histogram_mode(samples: &[f32], bin: f32, max: f32) -> f32 {
 /// SplitMix64: a well-mixed hash of an index, for deterministic subsampling.
 #[inline]
 pub(crate) fn splitmix64(x: u64) -> u64 {
-    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
+    crate::reference::rng::mix64(x.wrapping_add(0x9e37_79b9_7f4a_7c15))
 }
 
 #[cfg(test)]

@@ -100,12 +100,19 @@ struct Sweep {
     name: &'static str,
     what: &'static str,
     time_unit: &'static str,
+    /// What the error is measured against.
+    error_of: &'static str,
     rows: Vec<Row>,
 }
 
 impl Sweep {
+    /// What the sweep trades for error: run time, or (in KB) a level's size.
+    fn cost(&self) -> &'static str {
+        if self.time_unit == "KB" { "size" } else { "time" }
+    }
+
     fn csv(&self) -> String {
-        let mut s = format!("{},time_{},relative_rmse\n", self.what, self.time_unit);
+        let mut s = format!("{},{}_{},relative_rmse\n", self.what, self.cost(), self.time_unit);
         for r in &self.rows {
             let _ = writeln!(s, "{},{:.6},{:.6}", r.label, r.time, r.error);
         }
@@ -134,13 +141,13 @@ where
     let t_max = s.rows.iter().map(|r| r.time).fold(0.0f64, f64::max).max(1e-9) * 1.15;
     let e_max = s.rows.iter().map(|r| r.error).fold(0.0f64, f64::max).max(1e-9) * 1.15;
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{}: time against error", s.name), ("sans-serif", 20))
+        .caption(format!("{}: {} against error", s.name, s.cost()), ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d(0.0..t_max, 0.0..e_max)
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    chart.configure_mesh().x_desc(format!("run time ({})", s.time_unit)).y_desc("relative RMSE").draw().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    chart.configure_mesh().x_desc(format!("{} ({})", if s.cost() == "time" { "run time" } else { "level 1's size" }, s.time_unit)).y_desc("relative RMSE").draw().map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let mut by_time: Vec<(f64, f64)> = s.rows.iter().map(|r| (r.time, r.error)).collect();
     by_time.sort_by(|a, b| a.0.total_cmp(&b.0));
     chart.draw_series(LineSeries::new(by_time, &BLUE)).map_err(|e| anyhow::anyhow!("{e:?}"))?;
@@ -407,7 +414,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 let (t, img) = gpu.frame(&g, &cam, &light, &o, v)?;
                 rows.push(Row { label, time: t, error: relative_rmse(&img, &reference)? });
             }
-            Ok(Sweep { name, what, time_unit: "ms", rows })
+            Ok(Sweep { name, what, time_unit: "ms", error_of: "the GPU frame against the reference view", rows })
         };
         sweeps.push(vary("pom_steps", "max_steps", [8u32, 16, 32, 64, 4096].iter().map(|&s| (s.to_string(), CpuRenderOptions { max_steps: s, ..opts.clone() }, None)).collect())?);
         sweeps.push(vary("level_bias", "bias", [-1.0f32, 0.0, 1.0, 2.0, 3.0].iter().map(|&b| (format!("{b:+}"), CpuRenderOptions { level: LevelChoice::Auto { bias: b }, ..opts.clone() }, None)).collect())?);
@@ -425,15 +432,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
             ],
         )?);
         let rounds = bake["rounds"].as_array().cloned().unwrap_or_default();
-        sweeps.push(Sweep { name: "clusters_k", what: "K", time_unit: "s", rows: rounds.iter().map(|r| Row { label: format!("K={}", r["k"]), time: r["seconds"].as_f64().unwrap_or(0.0), error: r["error"].as_f64().unwrap_or(f64::NAN) }).collect() });
+        sweeps.push(Sweep { name: "clusters_k", what: "K", time_unit: "s", error_of: "the bake's training error per round of K doubling", rows: rounds.iter().map(|r| Row { label: format!("K={}", r["k"]), time: r["seconds"].as_f64().unwrap_or(0.0), error: r["error"].as_f64().unwrap_or(f64::NAN) }).collect() });
         let lobes: Vec<f64> = bake["prefilter"]["levels"][0]["error_by_lobes"].as_array().map(|a| a.iter().filter_map(|v| v.as_f64()).collect()).unwrap_or_default();
-        let level1_bytes = bake["prefilter"]["levels"][0]["surface_bytes"].as_f64().unwrap_or(0.0);
-        let mean_lobes = bake["prefilter"]["levels"][0]["mean_lobes"].as_f64().unwrap_or(1.0).max(1.0);
+        let level1 = &bake["prefilter"]["levels"][0];
+        let texels = level1["width"].as_f64().unwrap_or(0.0) * level1["height"].as_f64().unwrap_or(0.0);
         // The prefilter's pass gives the error with 1..8 lobes allowed (on up to 512 texels
-        // a level it goes on past the budget: LevelReport::error_by_lobes); the "time" axis
-        // is the level's size at that budget (16 + 16·L bytes per texel), in KB.
-        let texels = level1_bytes / (16.0 + 16.0 * mean_lobes);
-        sweeps.push(Sweep { name: "lobes_per_level", what: "lobes", time_unit: "KB", rows: lobes.iter().enumerate().map(|(i, e)| Row { label: format!("{}", i + 1), time: texels * (16.0 + 16.0 * (i + 1) as f64) / 1e3, error: *e }).collect() });
+        // a level it goes on past the budget: LevelReport::error_by_lobes); the cost axis
+        // is level 1's BRDF records at that budget in KB (the compact per-texel record,
+        // 8 + 12·L bytes: runtime/HYBRID_FORMAT.md §9).
+        sweeps.push(Sweep { name: "lobes_per_level", what: "lobes", time_unit: "KB", error_of: "level 1's coarse texels against their level-0 footprints (the prefilter's fit error)", rows: lobes.iter().enumerate().map(|(i, e)| Row { label: format!("{}", i + 1), time: texels * (8.0 + 12.0 * (i + 1) as f64) / 1e3, error: *e }).collect() });
         // The reference's own samples against its converged self (the bench's reference).
         let mut rows = Vec::new();
         for spp in [4u32, 8, 16, 32] {
@@ -445,7 +452,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             rows.push(Row { label: format!("{spp} spp"), time: t, error: relative_rmse(&Image::read(&out, 1.0)?, &reference)? });
         }
         rows.push(Row { label: format!("hybrid (GPU {ms:.0} ms)"), time: ms / 1e3, error: err });
-        sweeps.push(Sweep { name: "reference_spp", what: "renderer", time_unit: "s", rows });
+        sweeps.push(Sweep { name: "reference_spp", what: "renderer", time_unit: "s", error_of: "each renderer against the reference view", rows });
     }
     for s in &sweeps {
         write_sweep(&args.out, s, font.is_some())?;
@@ -455,9 +462,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
         args.suite, info.name, info.kind, info.driver, p.size, p.ref_size, p.ref_spp
     );
     md.push_str(&speed);
-    md.push_str("## Sweeps: run time against error (against the reference view)\n\n");
+    md.push_str("## Sweeps: cost against error\n\n");
     for s in &sweeps {
-        let _ = writeln!(md, "### {}\n\n| {} | time ({}) | relative RMSE |\n|---|---|---|", s.name, s.what, s.time_unit);
+        let _ = writeln!(md, "### {}\n\nThe error of {}.\n\n| {} | {} ({}) | relative RMSE |\n|---|---|---|", s.name, s.error_of, s.what, s.cost(), s.time_unit);
         for r in &s.rows {
             let _ = writeln!(md, "| {} | {:.3} | {:.4} |", r.label, r.time, r.error);
         }
