@@ -270,7 +270,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         // stride would alias with the weave's period).
         let sweep_stride = (lw * lh).div_ceil(LOBE_SWEEP_TEXELS).max(1) as u64;
         let in_sweep = |index: u32| mix64(((level as u64) << 32) | index as u64) % sweep_stride == 0;
-        let fits: Vec<(CoarseFit, Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>)> = (0..lw * lh)
+        let fits: Vec<(CoarseFit, Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>, bool)> = (0..lw * lh)
             .into_par_iter()
             .map(|index| {
                 let (i, j) = (index % lw, index / lw);
@@ -318,7 +318,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                     (cap_energy(&f.transmission, &frame), t_acc, f.relative_residual())
                 });
                 bar.advance(1);
-                (fit, acc, trans)
+                (fit, acc, trans, swept)
             })
             .collect();
         let mut table = BrdfTable::new();
@@ -331,7 +331,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let mut trans_targets = Vec::new();
         let mut trans_error = 0f64;
         let mut swept = 0usize;
-        for (index, (fit, acc, trans)) in fits.into_iter().enumerate() {
+        for (fit, acc, trans, in_sample) in fits {
             table.push_framed(fit.kd, fit.eta, fit.a, &fit.lobes);
             targets.extend(acc);
             if let Some((t, t_acc, e)) = trans {
@@ -340,7 +340,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                 trans_error += e;
             }
             errors.push(fit.error as f64);
-            if in_sweep(index as u32) {
+            if in_sample {
                 swept += 1;
                 for (acc, e) in by_lobes.iter_mut().zip(fit.error_by_count) {
                     *acc += e as f64;
