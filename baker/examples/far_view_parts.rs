@@ -117,6 +117,10 @@ fn main() {
         }
         return;
     }
+    if let Ok(polar) = std::env::var("DEPTHS") {
+        depth_weights(&model, polar.parse().unwrap());
+        return;
+    }
     if let Ok(polar) = std::env::var("ORACLE") {
         oracle_images(&model, polar.parse().unwrap());
         return;
@@ -660,6 +664,137 @@ fn sweep_levels(model: &HybridModel, list: &str) {
         for level in 1..model.levels.len().min(7) {
             let im = render(model, &camera, &light, &opt(LevelChoice::Fixed(level as u32), 4)).unwrap();
             println!("    level {level} at 4x4 spp: {:.2}% (mean {:.3})", 100.0 * relative_rmse(&im, &truth).unwrap(), mean(&im) / mean(&truth));
+        }
+    }
+}
+
+/// Where a coarse level's flyaway weights go against level 0's: each coarse node's visit
+/// weight along this view's rays against the summed weight of its level-0 children, by
+/// depth, with the children's seen-weighted colour (`DEPTHS=POLAR`).
+pub fn depth_weights(model: &HybridModel, polar: f32) {
+    use fabric_runtime::brdf::{DiffuseLaw, cloth_frame};
+    use fabric_runtime::cpu::Scene;
+    use fabric_runtime::cpu::flyaways::{FlyawayGrid, visit_flyaways};
+    use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
+    use glam::Vec3;
+    let dark = surface_black(model);
+    let camera = far_camera(&dark, polar, 16);
+    let light = [far_light()];
+    let wi = far_light().sample(Vec3::ZERO).wi;
+    let options = CpuRenderOptions { periodic: true, ..Default::default() };
+    let scene = Scene::new(&dark, &camera, &light, options).unwrap();
+    let wo = -camera.ray(8.0, 8.0).d;
+    let f0 = model.levels[0].flyaways.as_ref().unwrap();
+    let response = |index: usize| -> f64 {
+        let node = &f0.nodes[index];
+        let base = f0.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
+        let axes = f0.node_axes(index);
+        (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+    };
+    let seen_at = |level: usize, n: u32| -> Vec<f64> {
+        let f = model.levels[level].flyaways.as_ref().unwrap();
+        let grid = FlyawayGrid::new(model, level, true);
+        let mut seen = vec![0.0f64; f.nodes.len()];
+        for y in 0..16 * n {
+            for x in 0..16 * n {
+                let ray = camera.ray((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
+                let Some(t_top) = scene.enter_top(&ray) else { continue };
+                let t = scene.trace_ray(&ray, level);
+                let t_end = t.surface_t.unwrap_or(t_top + model.tile.height_scale / -ray.d.z);
+                visit_flyaways(f, &grid, &ray, t_top, t_end, 1 << 20, |index, _, _, w| seen[index] += w as f64 / (n * n) as f64);
+            }
+        }
+        seen
+    };
+    let seen0 = seen_at(0, 32);
+    let w0 = model.width();
+    let colour: Vec<f64> = (0..f0.nodes.len()).map(response).collect();
+    for level in 1..model.levels.len().min(4) {
+        let f = model.levels[level].flyaways.as_ref().unwrap();
+        let lw = model.levels[level].width;
+        let mut index_of = std::collections::HashMap::new();
+        for j in 0..model.levels[level].height {
+            for i in 0..lw {
+                for (index, node) in f.list((j * lw + i) as usize).with_index() {
+                    index_of.insert((i, j, node.depth as u32), index);
+                }
+            }
+        }
+        // Per coarse node: the children's seen weight and seen-weighted colour sum, and
+        // the same split by whether the child lies in the upper or lower half of its cell.
+        let mut wt = vec![0.0f64; f.nodes.len()];
+        let mut ct = vec![0.0f64; f.nodes.len()];
+        let mut upper = [0.0f64; 2];
+        let mut upper_c = [0.0f64; 2];
+        let mut orphan = 0.0;
+        for j in 0..model.height_px() {
+            for i in 0..w0 {
+                for (index, node) in f0.list((j * w0 + i) as usize).with_index() {
+                    let key = (i >> level, j >> level, node.depth as u32 >> level);
+                    let Some(&c) = index_of.get(&key) else { orphan += seen0[index]; continue };
+                    wt[c] += seen0[index];
+                    ct[c] += seen0[index] * colour[index];
+                    let half = usize::from(((node.depth as u32) & ((1 << level) - 1)) >= (1 << (level - 1)));
+                    upper[half] += seen0[index];
+                    upper_c[half] += seen0[index] * colour[index];
+                }
+            }
+        }
+        let wc = seen_at(level, 8);
+        let e: Vec<f64> = (0..f.nodes.len()).map(|k| if wt[k] > 0.0 { ct[k] / wt[k] } else { 0.0 }).collect();
+        let sum = |v: &[f64]| v.iter().sum::<f64>();
+        let (st, sc) = (sum(&wt), sum(&wc));
+        let img_t: f64 = (0..f.nodes.len()).map(|k| e[k] * wt[k]).sum();
+        let img_c: f64 = (0..f.nodes.len()).map(|k| e[k] * wc[k]).sum();
+        let unseen: f64 = (0..f.nodes.len()).filter(|&k| wt[k] == 0.0).map(|k| wc[k]).sum();
+        println!("{polar}° level {level}: opacity coarse/truth {:.3} (orphan children {:.4}, coarse weight on nodes whose children go unseen {:.1}%), exposed-colour image coarse/truth {:.3}", sc / st, orphan / st, 100.0 * unseen / sc, img_c / img_t);
+        println!("    children in the upper / lower half of their cell: weight {:.1}% / {:.1}%, colour {:.4} / {:.4}", 100.0 * upper[0] / (upper[0] + upper[1]), 100.0 * upper[1] / (upper[0] + upper[1]), upper_c[0] / upper[0].max(1e-12), upper_c[1] / upper[1].max(1e-12));
+        // By depth at this level.
+        let mut by_depth: std::collections::BTreeMap<u16, [f64; 4]> = std::collections::BTreeMap::new();
+        for (k, node) in f.nodes.iter().enumerate() {
+            let b = by_depth.entry(node.depth).or_default();
+            b[0] += wt[k];
+            b[1] += wc[k];
+            b[2] += e[k] * wt[k];
+            b[3] += e[k] * wc[k];
+        }
+        for (d, b) in by_depth {
+            if b[0] + b[1] < 1e-4 * (st + sc) {
+                continue;
+            }
+            println!("    depth {d:3}: truth weight {:6.2}%  coarse {:6.2}%  colour (truth-weighted) {:.4}  (coarse-weighted) {:.4}", 100.0 * b[0] / st, 100.0 * b[1] / sc, b[2] / b[0].max(1e-12), b[3] / b[1].max(1e-12));
+        }
+        // By the node's axis against the view: |t·ω_o| in fifths.
+        let mut by_axis = [[0.0f64; 4]; 5];
+        for (k, node) in f.nodes.iter().enumerate() {
+            let b = &mut by_axis[((node.tangent().dot(wo).abs() * 5.0) as usize).min(4)];
+            b[0] += wt[k];
+            b[1] += wc[k];
+            b[2] += e[k] * wt[k];
+            b[3] += node.alpha() as f64 * wt[k];
+        }
+        for (a, b) in by_axis.iter().enumerate() {
+            println!("    |t·wo| {:.1}–{:.1}: truth weight {:6.2}%  coarse {:6.2}%  ratio {:.3}  colour {:.4}  alpha {:.3}", a as f32 / 5.0, (a + 1) as f32 / 5.0, 100.0 * b[0] / st, 100.0 * b[1] / sc, (b[1] / sc) / (b[0] / st).max(1e-12), b[2] / b[0].max(1e-12), b[3] / b[0].max(1e-12));
+        }
+        // By α in fifths.
+        let mut by_alpha = [[0.0f64; 3]; 5];
+        for (k, node) in f.nodes.iter().enumerate() {
+            let b = &mut by_alpha[((node.alpha() * 5.0) as usize).min(4)];
+            b[0] += wt[k];
+            b[1] += wc[k];
+            b[2] += e[k] * wt[k];
+        }
+        for (a, b) in by_alpha.iter().enumerate() {
+            println!("    alpha {:.1}–{:.1}: truth weight {:6.2}%  coarse {:6.2}%  ratio {:.3}  colour {:.4}", a as f32 / 5.0, (a + 1) as f32 / 5.0, 100.0 * b[0] / st, 100.0 * b[1] / sc, (b[1] / sc) / (b[0] / st).max(1e-12), b[2] / b[0].max(1e-12));
+        }
+        // By colour: quartiles of the exposed colour among seen nodes.
+        let mut order: Vec<usize> = (0..f.nodes.len()).filter(|&k| wt[k] > 0.0).collect();
+        order.sort_by(|&a, &b| e[a].total_cmp(&e[b]));
+        let q = order.len() / 4;
+        for part in 0..4 {
+            let ks = &order[part * q..if part == 3 { order.len() } else { (part + 1) * q }];
+            let (a, b): (f64, f64) = ks.iter().fold((0.0, 0.0), |s, &k| (s.0 + wt[k], s.1 + wc[k]));
+            println!("    colour quartile {part}: truth weight {:6.2}%  coarse {:6.2}%  ratio {:.3}", 100.0 * a / st, 100.0 * b / sc, (b / sc) / (a / st).max(1e-12));
         }
     }
 }

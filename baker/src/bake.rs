@@ -32,6 +32,7 @@ use serde::Serialize;
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
+use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, lobe_albedo, unit_albedos};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
@@ -258,6 +259,8 @@ pub struct BakeReport {
     pub normal_slope: f32,
     pub relief: f32,
     pub flyaway_voxels: usize,
+    /// The lobes' energy bound (`fit::energy`): what it found and what it scaled down.
+    pub energy: EnergyReport,
     pub flyaways: Option<FlyawayReport>,
     /// The mip chain's figures per level (fit error, lobes, bytes, time).
     pub prefilter: Option<PrefilterReport>,
@@ -271,6 +274,23 @@ pub struct BakeReport {
     pub total_seconds: f64,
     pub input_bytes: u64,
     pub model_bytes: u64,
+}
+
+/// The lobes' energy bound (`fit::energy`): the worst albedo of the fitted lobes, before
+/// the bound, and how many were scaled down to [`LOBE_ALBEDO_MAX`].
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct EnergyReport {
+    pub lobe_albedo_max: f32,
+    /// The worst Σ_j k_j Â_j of a cluster's lobes as fitted, and how many clusters were
+    /// scaled.
+    pub worst_cluster_albedo: f32,
+    pub clusters_capped: usize,
+    /// The same per texel after the per-texel refinement (0 without it).
+    pub worst_texel_albedo: f32,
+    pub texels_capped: usize,
+    /// The same per flyaway table entry (0 without flyaways).
+    pub worst_flyaway_albedo: f32,
+    pub flyaway_entries_capped: usize,
 }
 
 /// What the transmission fit measured.
@@ -617,29 +637,48 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let frames = offset_frames(&base_frames, &clusters, &offsets);
     let lobe0_frames: Vec<ClothFrame> = frames.iter().map(|f| f[0]).collect();
     let geo_of = |s: &Sample| sample_geo(s, &frames, &dirs, options.fit.diffuse);
-    let params: Vec<ClothParams> = fits.iter().map(|f| f.params).collect();
+    // The lobes' energy (fit::energy): a lobe that the pairs see only by its tail may not
+    // reflect more than it receives. Each cluster's lobes are capped before the per-texel
+    // refinement, which starts from them, and each texel's after it.
+    let unit: Vec<Vec<f32>> = fits.par_iter().map(|f| unit_albedos(&f.params, options.fit.reading)).collect();
+    let worst_cluster_albedo = fits.iter().zip(&unit).map(|(f, u)| lobe_albedo(&f.params, u)).fold(0.0, f32::max);
+    let (params, cluster_scales): (Vec<ClothParams>, Vec<f32>) = fits.iter().zip(&unit).map(|(f, u)| cap_lobes(&f.params, u)).unzip();
+    let clusters_capped = cluster_scales.iter().filter(|&&s| s < 1.0).count();
     let k = params.len();
     let cluster_block_error = rounds.iter().find(|r| r.k == k).map_or(cluster_error, |r| r.block_error);
 
     // Per-texel refinement of the linear parameters.
     let t = Instant::now();
+    let mut energy = EnergyReport { lobe_albedo_max: LOBE_ALBEDO_MAX, worst_cluster_albedo, clusters_capped, ..Default::default() };
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
             let bar = begin_stage(progress, "per-texel refinement", 1);
             // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
             let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
-            let refined: Vec<ClothParams> = (0..texels)
+            let refined: Vec<(ClothParams, f32, f32)> = (0..texels)
                 .into_par_iter()
                 .map(|j| {
                     let t: Vec<LobeTarget> = by_texel.group(j).iter().map(|&i| &samples[i as usize]).map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
-                    refine_texel(&t, &params[clusters[j] as usize], ridge, options.fit.reading)
+                    let c = clusters[j] as usize;
+                    let p = refine_texel(&t, &params[c], ridge, options.fit.reading);
+                    let (capped, scale) = cap_lobes(&p, &unit[c]);
+                    (capped, scale, lobe_albedo(&p, &unit[c]))
                 })
                 .collect();
+            energy.texels_capped = refined.iter().filter(|r| r.1 < 1.0).count();
+            energy.worst_texel_albedo = refined.iter().map(|r| r.2).fold(0.0, f32::max);
+            let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.0).collect();
             drop(by_texel);
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
             bar.finish();
             (Some(refined), predictions, e, be)
+        }
+        // What the model holds: the capped clusters.
+        None if clusters_capped > 0 => {
+            let predictions = predict_images(&samples, &|hit| &params[clusters[hit] as usize], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
+            let (e, be) = image_errors(&predictions, &training.images, nx, ny);
+            (None, predictions, e, be)
         }
         None => (None, predictions, cluster_error, cluster_block_error),
     };
@@ -706,6 +745,11 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         bar.finish();
         let bar = begin_stage(progress, "flyaways: fitting", 1);
         let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &shape, kf, options.fit.reading);
+        // The flyaways' lobes under the same energy bound as the surface's.
+        let fly_unit: Vec<Vec<f32>> = fly_params.par_iter().map(|p| unit_albedos(p, options.fit.reading)).collect();
+        energy.worst_flyaway_albedo = fly_params.iter().zip(&fly_unit).map(|(p, u)| lobe_albedo(p, u)).fold(0.0, f32::max);
+        let (fly_params, fly_scales): (Vec<ClothParams>, Vec<f32>) = fly_params.iter().zip(&fly_unit).map(|(p, u)| cap_lobes(p, u)).unzip();
+        energy.flyaway_entries_capped = fly_scales.iter().filter(|&&s| s < 1.0).count();
         bar.finish();
         rep.voxels = geometry.flyaways.len();
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
@@ -757,6 +801,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         normal_slope: options.normal_slope,
         relief: options.relief,
         flyaway_voxels: geometry.flyaways.len(),
+        energy,
         flyaways: flyaway_report,
         prefilter: prefilter_report,
         transmission: transmission_report,

@@ -1,6 +1,6 @@
 //! Fitting the spatially varying cloth BRDF (paper §5.3, Algorithm 1): training
 //! configurations ([`directions`]), training renderings and the model-side samples
-//! ([`samples`]), per-texel features ([`features`]), clustering ([`kmeans`]), the
+//! ([`samples`]), per-texel features ([`features`]), the lobes' energy bound ([`energy`]), clustering ([`kmeans`]), the
 //! per-cluster fit ([`cluster_fit`], with its frame offset [`frames`]: Nelder–Mead over [`simplex`] with the linear
 //! parameters by [`nnls`]), the flyaways' fit ([`flyaways`]) and, for a BSDF, the
 //! transmission term's ([`transmission`]). The pipeline that
@@ -8,6 +8,7 @@
 
 pub mod cluster_fit;
 pub mod directions;
+pub mod energy;
 pub mod features;
 pub mod flyaways;
 pub mod frames;

@@ -356,6 +356,20 @@ pub fn run(args: BakeArgs) -> Result<()> {
         );
     }
     println!("training error on grazing pairs (a polar angle > 55°) {:.1}%, on the others {:.1}%", 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);
+    let e = &r.energy;
+    let worst = e.worst_cluster_albedo.max(e.worst_texel_albedo).max(e.worst_flyaway_albedo);
+    if e.clusters_capped + e.texels_capped + e.flyaway_entries_capped > 0 {
+        println!(
+            "lobe energy: the fitted lobes reflected up to {worst:.1}x what they receive; scaled down to an albedo of {}: {} of {k} clusters, {} texels, {} flyaway entries (the pairs saw those lobes by their tails alone: more pairs fit them)",
+            e.lobe_albedo_max,
+            e.clusters_capped,
+            e.texels_capped,
+            e.flyaway_entries_capped,
+            k = r.k
+        );
+    } else {
+        println!("lobe energy: worst albedo of the fitted lobes {worst:.2} (bound {}): none scaled", e.lobe_albedo_max);
+    }
     if let Some(f) = &r.flyaways {
         println!(
             "flyaways: {} voxels in {} clusters; {} training pixels cross them: error {:.1}% with them black, {:.1}% fitted{}",
