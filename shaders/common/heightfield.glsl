@@ -160,6 +160,16 @@ bool hf_leaf_hit(HfRay r, ivec2 cell, float ta, float tb, float bias, out float 
     return true;
 }
 
+// Steps after which a march descends one quadtree level less, and one more per as many
+// again (a ray skimming the crests near a periodic sheet's horizon). Twin:
+// STEPS_PER_FLOOR (runtime/src/cpu/heightfield.rs).
+const uint HF_STEPS_PER_FLOOR = 512u;
+
+// Repeats of a periodic tile a march crosses below the shallowest depth before it takes
+// the next repeat's flat top as the hit (a ray within a fraction of a degree of the
+// horizon). Twin: SKIM_TILES.
+const uint HF_SKIM_TILES = 16u;
+
 // The quadtree traversal of one tile's leaves over [ta, tb].
 HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, inout uint steps, int floor_level) {
     int top = int(model.quad_count) - 1;
@@ -183,7 +193,7 @@ HfTrace hf_traverse(HfRay r, float ta, float tb, float bias, uint max_steps, ino
                 if (hf_leaf_hit(r, cell, t, t_exit, bias, th)) {
                     return HfTrace(HF_HIT, th);
                 }
-            } else if (level <= floor_level) {
+            } else if (level <= max(floor_level, int(steps / HF_STEPS_PER_FLOOR))) {
                 // The node's flat top: where the (linear) depth reaches its bound.
                 float th = hf_depth(r, t) >= bound + bias ? t : (bound + bias - r.d0) / r.dd;
                 return HfTrace(HF_HIT, clamp(th, t, t_exit));
@@ -236,13 +246,16 @@ HfTrace hf_trace_periodic(HfRay r, float ta, float tb, float bias, uint max_step
         }
     }
     float t = ta;
+    uint walked = 0u;
     for (;;) {
         vec2 lo = vec2(tile) * n;
         vec2 exits = vec2(hf_axis_exit(r.q0.x, r.dq.x, lo.x, lo.x + n.x), hf_axis_exit(r.q0.y, r.dq.y, lo.y, lo.y + n.y));
         float t_tile = max(min(min(exits.x, exits.y), tb), t);
         HfRay local = r;
         local.q0 = r.q0 - lo;
-        HfTrace h = hf_traverse(local, t, t_tile, bias, max_steps, steps, floor_level);
+        int tile_floor = walked >= HF_SKIM_TILES ? int(model.quad_count) - 1 : floor_level;
+        walked += 1u;
+        HfTrace h = hf_traverse(local, t, t_tile, bias, max_steps, steps, tile_floor);
         if (h.kind != HF_MISS) {
             return h;
         }
@@ -267,7 +280,10 @@ HfTrace hf_trace(vec3 o, vec3 d, float t_start, float t_stop, float bias, uint m
     HfRay r = hf_leaf_ray(o, d, t_start);
     float ta = 0.0;
     float tb = t_stop - t_start;
-    if (!hf_clip(r.d0, r.dd, 0.0, model.height_scale, ta, tb)) {
+    // The slab from the shallowest depth (the quadtree's root bound) down: no ray meets the
+    // surface above it (twin: HeightTracer::trace_to).
+    float shallowest = clamp(hf_bound(int(model.quad_count) - 1, ivec2(0)), 0.0, model.height_scale);
+    if (!hf_clip(r.d0, r.dd, shallowest, model.height_scale, ta, tb)) {
         return HfTrace(HF_MISS, 0.0);
     }
     floor_level = min(floor_level, int(model.quad_count) - 1);

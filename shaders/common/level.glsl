@@ -114,6 +114,19 @@ bool fine_grid_traced(vec2 axis_a, vec2 axis_b) {
     return max(length(axis_a * model.inv_texel), length(axis_b * model.inv_texel)) >= FINE_TRACE_FROM;
 }
 
+// The level a flyaway march of `level` reads along a path crossing `columns` level-0
+// column lines: coarser where its own columns would number more than GRAZING_COLUMNS (a
+// ray near a periodic sheet's horizon). Twin: grazing_level, GRAZING_COLUMNS.
+const float GRAZING_COLUMNS = 1024.0;
+
+uint grazing_level(uint level, float columns, uint last) {
+    if (!(columns > GRAZING_COLUMNS)) {
+        return level;
+    }
+    float need = ceil(log2(columns / GRAZING_COLUMNS));
+    return max(level, need >= float(last) ? last : uint(need));
+}
+
 // Most flyaway rays along a footprint's major axis per ray across it. Twin:
 // FLY_MAX_ANISOTROPY.
 #define FLY_MAX_ANISOTROPY 2u

@@ -43,8 +43,11 @@ bool enter_top(vec3 o, vec3 d, out float t) {
     return true;
 }
 
-// The flyaways of `level` over [t_top, t_end].
-FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level, bool shaded, inout uint shadow_limited) {
+// The flyaways of `level` over [t_top, t_end]; of a coarser level where the path crosses
+// more than GRAZING_COLUMNS of its columns (grazing_level).
+FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level_in, bool shaded, inout uint shadow_limited) {
+    float columns = (abs(d.x) * model.inv_texel.x + abs(d.y) * model.inv_texel.y) * (t_end - t_top);
+    uint level = grazing_level(level_in, columns, model.level_count - 1u);
     if (!HAS_FLYAWAYS || model.levels[level].fly_nodes == 0u) {
         return FlyawayMarch(vec3(0.0), 1.0, 0u, false);
     }

@@ -31,6 +31,23 @@ use crate::scene::Ray;
 /// Bisection steps of the refinement: the hit is located to 2⁻²⁰ of the leaf segment.
 pub const REFINE_STEPS: u32 = 20;
 
+/// Steps of a march after which it descends one quadtree level less (and one more per as
+/// many steps again): a node at or above that floor is a hit on its flat top, as under
+/// `trace_to`'s `floor`. A ray near the horizon of a periodic sheet skims the crests of
+/// hundreds of tiles, descending into each: at 89.99° over a felt, every ray of a pixel's
+/// grids ran to the 4096-step budget and lavapipe drew a 160×90 frame in 15 s. Rays that
+/// meet the surface within this many steps (every view to 85° of the presets) are exact
+/// and unchanged. Twin: HF_STEPS_PER_FLOOR in shaders/common/heightfield.glsl.
+pub const STEPS_PER_FLOOR: u32 = 512;
+
+/// Repeats of a periodic tile a march crosses below the shallowest depth before it takes
+/// the next repeat's flat top (its shallowest depth, which the ray is already below) as the
+/// hit. A ray that has skimmed this many tiles' crests without meeting one is within a
+/// fraction of a degree of the horizon (at 89.99° over a felt, 300 of them), where its
+/// pixel spans thousands of texels. The presets' views to 89° meet the surface within 3.
+/// Twin: HF_SKIM_TILES in shaders/common/heightfield.glsl.
+pub const SKIM_TILES: u32 = 16;
+
 /// The outcome of a march.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum HfTrace {
@@ -186,9 +203,12 @@ impl HeightTracer {
     #[allow(clippy::too_many_arguments)] // trace's arguments and the floor
     pub fn trace_to(&self, ray: &Ray, t_start: f32, t_stop: f32, bias: f32, max_steps: u32, steps: &mut u32, floor: usize) -> HfTrace {
         let r = self.leaf_ray(ray, t_start);
-        // Clip to the slab 0 ≤ D ≤ height_scale: below it every ray is under the surface.
+        // Clip to the slab D₀ ≤ D ≤ height_scale: above the shallowest depth D₀ (the
+        // quadtree's root bound) no ray meets the surface, below the slab every ray is
+        // under it. A ray near the horizon crosses hundreds of tiles above D₀ (a step each).
+        let shallowest = self.levels.last().map_or(0.0, |l| l.min_depth[0]).clamp(0.0, self.height_scale);
         let (mut ta, mut tb) = (0.0f32, t_stop - t_start);
-        if !clip(r.d0, r.dd, 0.0, self.height_scale, &mut ta, &mut tb) {
+        if !clip(r.d0, r.dd, shallowest, self.height_scale, &mut ta, &mut tb) {
             return HfTrace::Miss;
         }
         let floor = floor.min(self.levels.len() - 1);
@@ -227,11 +247,14 @@ impl HeightTracer {
             }
         }
         let mut t = ta;
+        let mut walked = 0u32;
         loop {
             let lo = Vec2::new(tile[0] as f32, tile[1] as f32) * n;
             let exits = [axis_exit(r.q0.x, r.dq.x, lo.x, lo.x + n.x), axis_exit(r.q0.y, r.dq.y, lo.y, lo.y + n.y)];
             let t_tile = exits[0].min(exits[1]).min(tb).max(t);
             let local = HfRay { q0: r.q0 - lo, ..*r };
+            let floor = if walked >= SKIM_TILES { self.levels.len() - 1 } else { floor };
+            walked += 1;
             match self.traverse(&local, t, t_tile, bias, max_steps, steps, floor) {
                 HfTrace::Miss => {}
                 other => return other,
@@ -276,7 +299,7 @@ impl HeightTracer {
                     if let Some(th) = self.leaf_hit(r, cell, t, t_exit, bias) {
                         return HfTrace::Hit(th);
                     }
-                } else if level <= floor {
+                } else if level <= floor.max((*steps / STEPS_PER_FLOOR) as usize) {
                     // The node's flat top: where the (linear) depth reaches its bound.
                     let th = if r.depth(t) >= bound + bias { t } else { (bound + bias - r.d0) / r.dd };
                     return HfTrace::Hit(th.clamp(t, t_exit));

@@ -307,3 +307,47 @@ pub const FINE_TRACE_FROM: f32 = 0.5;
 pub fn fine_grid_traced(fine_axes: (Vec2, Vec2), inv_texel: Vec2) -> bool {
     (fine_axes.0 * inv_texel).length().max((fine_axes.1 * inv_texel).length()) >= FINE_TRACE_FROM
 }
+
+/// Most columns of its level a flyaway march crosses ([`grazing_level`]).
+pub const GRAZING_COLUMNS: f32 = 1024.0;
+
+/// The level a flyaway march of `level` reads along a path that crosses `columns`
+/// level-0 column lines (|Δu| + |Δv| in texels across the tile plane): `level`, or the
+/// coarser level whose columns it crosses at most [`GRAZING_COLUMNS`] of (clamped to
+/// `last`). A ray near the horizon of a periodic sheet runs ~tan θ times the slab's depth
+/// through the flyaway layer: at 89.99° over felt's 0.32-unit slab, some 34 000 level-0
+/// columns, each of a grid's up to 48 rays. The felt 128² preset's flyaway layer is 27
+/// texels deep: its marches keep level 0 to 88.5° (256 columns changed its 85° view by
+/// 10%). Twin: `grazing_level` in shaders/common/level.glsl.
+pub fn grazing_level(level: usize, columns: f32, last: usize) -> usize {
+    if !(columns > GRAZING_COLUMNS) {
+        return level;
+    }
+    // ∞ gives `last` (NaN does not reach here).
+    let need = (columns / GRAZING_COLUMNS).log2().ceil();
+    level.max(if need >= last as f32 { last } else { need as usize })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grazing_marches_read_the_level_whose_columns_they_cross_at_most_a_budget_of() {
+        // Up to the budget: the level asked for.
+        assert_eq!(grazing_level(0, 0.0, 7), 0);
+        assert_eq!(grazing_level(2, GRAZING_COLUMNS, 7), 2);
+        // Past it: the coarser level that brings the count within it, never finer.
+        assert_eq!(grazing_level(0, GRAZING_COLUMNS + 1.0, 7), 1);
+        assert_eq!(grazing_level(0, 4.0 * GRAZING_COLUMNS, 7), 2);
+        assert_eq!(grazing_level(3, 4.0 * GRAZING_COLUMNS, 7), 3);
+        for columns in [300.0f32, 1e4, 3.4e4] {
+            let l = grazing_level(0, columns, 20);
+            assert!(columns / (1u32 << l) as f32 <= GRAZING_COLUMNS && (l == 0 || columns / (1u32 << (l - 1)) as f32 > GRAZING_COLUMNS), "{columns}: {l}");
+        }
+        // Clamped to the coarsest level; ∞ clamps, NaN keeps the level.
+        assert_eq!(grazing_level(0, 1e12, 5), 5);
+        assert_eq!(grazing_level(1, f32::INFINITY, 5), 5);
+        assert_eq!(grazing_level(1, f32::NAN, 5), 1);
+    }
+}

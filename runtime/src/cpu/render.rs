@@ -554,12 +554,15 @@ impl<'a> Scene<'a> {
         if !self.options.flyaways {
             return (1.0, false);
         }
-        let one = |level: usize| match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
-            Some(f) => {
-                let m = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |_, _, _, _| {});
-                (m.transmittance, m.limited)
+        let one = |level: usize| {
+            let level = self.grazing_level(ray, t_top, t_end, level);
+            match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+                Some(f) => {
+                    let m = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |_, _, _, _| {});
+                    (m.transmittance, m.limited)
+                }
+                None => (1.0, false),
             }
-            None => (1.0, false),
         };
         let (t, limited) = one(lo);
         if w > 0.0 && hi != lo {
@@ -569,8 +572,20 @@ impl<'a> Scene<'a> {
         (t, limited)
     }
 
-    /// The flyaways of `level` over [t_top, t_end], composited front to back.
+    /// The level a flyaway march of `level` over [t_top, t_end] reads: coarser where its
+    /// columns would number more than `GRAZING_COLUMNS` (a ray near a periodic sheet's
+    /// horizon; level.rs, [`grazing_level`]). Twin: march_level_flyaways in
+    /// shaders/common/trace.glsl.
+    fn grazing_level(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize) -> usize {
+        let inv = self.model.inv_texel_size();
+        let columns = (ray.d.x.abs() * inv.x + ray.d.y.abs() * inv.y) * (t_end - t_top);
+        grazing_level(level, columns, self.model.levels.len() - 1)
+    }
+
+    /// The flyaways of `level` (or the coarser level of [`Scene::grazing_level`]) over
+    /// [t_top, t_end], composited front to back.
     fn march_level_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize) -> FlyShade {
+        let level = self.grazing_level(ray, t_top, t_end, level);
         let wo = -ray.d;
         let mut out = FlyShade { radiance: Vec3::ZERO, transmittance: 1.0, limited: false, shadow_limited: 0 };
         if !self.options.flyaways {
