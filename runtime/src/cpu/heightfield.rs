@@ -44,7 +44,7 @@ pub const STEPS_PER_FLOOR: u32 = 512;
 /// the next repeat's flat top (its shallowest depth, which the ray is already below) as the
 /// hit. A ray that has skimmed this many tiles' crests without meeting one is within a
 /// fraction of a degree of the horizon (at 89.99° over a felt, 300 of them), where its
-/// pixel spans thousands of texels. The presets' views to 89° meet the surface within 3.
+/// pixel spans thousands of texels. The presets' views to 89.5° are unchanged by it.
 /// Twin: HF_SKIM_TILES in shaders/common/heightfield.glsl.
 pub const SKIM_TILES: u32 = 16;
 
