@@ -118,3 +118,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     println!("wrote {}", args.output.out.display());
     Ok(())
 }
+
+/// A frame in which no pixel met the tile is the background alone: say why, rather than
+/// write an empty image without a word.
+pub(super) fn warn_if_tile_unseen(tile_pixels: u64) {
+    if tile_pixels == 0 {
+        println!("warning: no pixel sees the tile: the camera is below its top plane or looks away from it (a hybrid model is drawn from above; --view-angles takes θ < 90°); the image is the background");
+    }
+}

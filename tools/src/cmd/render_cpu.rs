@@ -188,6 +188,7 @@ pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvA
         stats.flyaway_pixels,
         stats.level_pixels
     );
+    super::render::warn_if_tile_unseen(stats.tile_pixels);
     if stats.step_limited_pixels > 0 || stats.step_limited_shadow_rays > 0 {
         println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", stats.step_limited_pixels, stats.step_limited_shadow_rays, options.max_steps);
     }

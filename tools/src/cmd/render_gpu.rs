@@ -93,7 +93,10 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
     let variant = format!("variant: flyaways {}, shadows {}, {} light(s){}{}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" }, if v.transmission { ", transmission (a light behind the cloth)" } else { "" });
     match &mesh {
         Some(m) => println!("{variant}; on a mesh of {} triangles, {}x{} tiles per UV unit", m.indices.len() / 3, uv_scale.x, uv_scale.y),
-        None => println!("{variant}; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}", s.tile_pixels, s.surface_pixels, s.flyaway_pixels, s.level_pixels),
+        None => {
+            println!("{variant}; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}", s.tile_pixels, s.surface_pixels, s.flyaway_pixels, s.level_pixels);
+            super::render::warn_if_tile_unseen(s.tile_pixels);
+        }
     }
     if s.step_limited_pixels > 0 || s.step_limited_shadow_rays > 0 {
         println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", s.step_limited_pixels, s.step_limited_shadow_rays, options.max_steps);
