@@ -11,7 +11,9 @@
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
 //! `KMEANS=1,2,… [GROUP_CONES=1] [PLAIN=1]`; baker/PREFILTER_MEASUREMENTS.md, "What the
-//! coarse flyaways get wrong").
+//! coarse flyaways get wrong"); `DEPTHS=POLAR` each coarse level's flyaway weights against
+//! its level-0 children's, by depth, by axis against the view and by α ("Where the 70°
+//! flyaway error lies").
 
 use fabric_baker::prefilter::far_view::{far_camera, far_light};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderOptions, LevelChoice, render};
