@@ -324,6 +324,27 @@ pub fn opacity_images(model: &HybridModel, polar: f32) {
     }
 }
 
+/// The far view at `polar` of the model with its surface black (its flyaways alone), with
+/// the far light's direction and the view's.
+fn flyaway_probe_view(model: &HybridModel, polar: f32) -> (HybridModel, fabric_runtime::scene::Camera, glam::Vec3, glam::Vec3) {
+    let dark = surface_black(model);
+    let camera = far_camera(&dark, polar, 16);
+    let wi = far_light().sample(glam::Vec3::ZERO).wi;
+    let wo = -camera.ray(8.0, 8.0).d;
+    (dark, camera, wi, wo)
+}
+
+/// Flyaway node `index`'s mean luminance response under the far light, seen from `wo`:
+/// its axes' responses weighted as the renderer weights them.
+fn node_response(model: &HybridModel, f: &fabric_runtime::hybrid::Flyaways, index: usize, wi: glam::Vec3, wo: glam::Vec3) -> f64 {
+    use fabric_runtime::brdf::{DiffuseLaw, cloth_frame};
+    use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
+    let node = &f.nodes[index];
+    let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(glam::Vec3::Z, glam::Vec3::X));
+    let axes = f.node_axes(index);
+    (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+}
+
 /// The 70°-style split of [`opacity_images`] with each coarse node shaded three ways:
 /// as the renderer does (its cone of axes, re-marched here), and as the oracle, the
 /// α-weighted mean response of the level-0 nodes of its cell: whether the node's
@@ -334,19 +355,10 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
     use fabric_runtime::cpu::flyaways::{FlyawayGrid, visit_flyaways};
     use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
     use glam::Vec3;
-    let dark = surface_black(model);
-    let camera = far_camera(&dark, polar, 16);
+    let (dark, camera, wi, wo) = flyaway_probe_view(model, polar);
     let light = [far_light()];
-    let wi = far_light().sample(Vec3::ZERO).wi;
-    let options = CpuRenderOptions { periodic: true, ..Default::default() };
-    let scene = Scene::new(&dark, &camera, &light, options).unwrap();
-    let wo = -camera.ray(8.0, 8.0).d;
-    let response = |f: &fabric_runtime::hybrid::Flyaways, index: usize| -> f64 {
-        let node = &f.nodes[index];
-        let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
-        let axes = f.node_axes(index);
-        (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
-    };
+    let scene = Scene::new(&dark, &camera, &light, CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
+    let response = |f: &fabric_runtime::hybrid::Flyaways, index: usize| node_response(model, f, index, wi, wo);
     let f0 = model.levels[0].flyaways.as_ref().unwrap();
     let w0 = model.width();
     let per_pixel = |level: usize, n: u32, shade: &dyn Fn(usize) -> f64| -> Vec<f64> {
@@ -674,25 +686,13 @@ fn sweep_levels(model: &HybridModel, list: &str) {
 /// weight along this view's rays against the summed weight of its level-0 children, by
 /// depth, with the children's seen-weighted colour (`DEPTHS=POLAR`).
 pub fn depth_weights(model: &HybridModel, polar: f32) {
-    use fabric_runtime::brdf::{DiffuseLaw, cloth_frame};
     use fabric_runtime::cpu::Scene;
     use fabric_runtime::cpu::flyaways::{FlyawayGrid, visit_flyaways};
-    use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-    use glam::Vec3;
-    let dark = surface_black(model);
-    let camera = far_camera(&dark, polar, 16);
+    let (dark, camera, wi, wo) = flyaway_probe_view(model, polar);
     let light = [far_light()];
-    let wi = far_light().sample(Vec3::ZERO).wi;
-    let options = CpuRenderOptions { periodic: true, ..Default::default() };
-    let scene = Scene::new(&dark, &camera, &light, options).unwrap();
-    let wo = -camera.ray(8.0, 8.0).d;
+    let scene = Scene::new(&dark, &camera, &light, CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     let f0 = model.levels[0].flyaways.as_ref().unwrap();
-    let response = |index: usize| -> f64 {
-        let node = &f0.nodes[index];
-        let base = f0.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
-        let axes = f0.node_axes(index);
-        (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
-    };
+    let response = |index: usize| node_response(model, f0, index, wi, wo);
     let seen_at = |level: usize, n: u32| -> Vec<f64> {
         let f = model.levels[level].flyaways.as_ref().unwrap();
         let grid = FlyawayGrid::new(model, level, true);
