@@ -36,8 +36,8 @@ pub const REFINE_STEPS: u32 = 20;
 /// `trace_to`'s `floor`. A ray near the horizon of a periodic sheet skims the crests of
 /// hundreds of tiles, descending into each: at 89.99° over a felt, every ray of a pixel's
 /// grids ran to the 4096-step budget and lavapipe drew a 160×90 frame in 15 s. Rays that
-/// meet the surface within this many steps (every view to 85° of the presets) are exact
-/// and unchanged. Twin: HF_STEPS_PER_FLOOR in shaders/common/heightfield.glsl.
+/// meet the surface within this many steps are exact and unchanged (the presets' camera
+/// rays take at most 148 at 89°). Twin: HF_STEPS_PER_FLOOR in shaders/common/heightfield.glsl.
 pub const STEPS_PER_FLOOR: u32 = 512;
 
 /// Repeats of a periodic tile a march crosses below the shallowest depth before it takes
