@@ -32,7 +32,7 @@ use serde::Serialize;
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
-use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, lobe_albedo, unit_albedos};
+use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, unit_albedos};
 use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
@@ -291,6 +291,11 @@ pub struct EnergyReport {
     /// The same per flyaway table entry (0 without flyaways).
     pub worst_flyaway_albedo: f32,
     pub flyaway_entries_capped: usize,
+}
+
+/// The worst of the lobes' albedos as fitted, and how many were above the bound (scaled).
+fn albedo_summary(albedos: &[f32]) -> (f32, usize) {
+    (albedos.iter().copied().fold(0.0, f32::max), albedos.iter().filter(|&&a| a > LOBE_ALBEDO_MAX).count())
 }
 
 /// What the transmission fit measured.
@@ -641,9 +646,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // reflect more than it receives. Each cluster's lobes are capped before the per-texel
     // refinement, which starts from them, and each texel's after it.
     let unit: Vec<Vec<f32>> = fits.par_iter().map(|f| unit_albedos(&f.params, options.fit.reading)).collect();
-    let worst_cluster_albedo = fits.iter().zip(&unit).map(|(f, u)| lobe_albedo(&f.params, u)).fold(0.0, f32::max);
-    let (params, cluster_scales): (Vec<ClothParams>, Vec<f32>) = fits.iter().zip(&unit).map(|(f, u)| cap_lobes(&f.params, u)).unzip();
-    let clusters_capped = cluster_scales.iter().filter(|&&s| s < 1.0).count();
+    let (params, cluster_albedos): (Vec<ClothParams>, Vec<f32>) = fits.iter().zip(&unit).map(|(f, u)| cap_lobes(&f.params, u)).unzip();
+    let (worst_cluster_albedo, clusters_capped) = albedo_summary(&cluster_albedos);
     let k = params.len();
     let cluster_block_error = rounds.iter().find(|r| r.k == k).map_or(cluster_error, |r| r.block_error);
 
@@ -655,19 +659,16 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let bar = begin_stage(progress, "per-texel refinement", 1);
             // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
             let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
-            let refined: Vec<(ClothParams, f32, f32)> = (0..texels)
+            let refined: Vec<(ClothParams, f32)> = (0..texels)
                 .into_par_iter()
                 .map(|j| {
                     let t: Vec<LobeTarget> = by_texel.group(j).iter().map(|&i| &samples[i as usize]).map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
                     let c = clusters[j] as usize;
-                    let p = refine_texel(&t, &params[c], ridge, options.fit.reading);
-                    let (capped, scale) = cap_lobes(&p, &unit[c]);
-                    (capped, scale, lobe_albedo(&p, &unit[c]))
+                    cap_lobes(&refine_texel(&t, &params[c], ridge, options.fit.reading), &unit[c])
                 })
                 .collect();
-            energy.texels_capped = refined.iter().filter(|r| r.1 < 1.0).count();
-            energy.worst_texel_albedo = refined.iter().map(|r| r.2).fold(0.0, f32::max);
-            let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.0).collect();
+            let (refined, albedos): (Vec<ClothParams>, Vec<f32>) = refined.into_iter().unzip();
+            (energy.worst_texel_albedo, energy.texels_capped) = albedo_summary(&albedos);
             drop(by_texel);
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
@@ -747,9 +748,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &shape, kf, options.fit.reading);
         // The flyaways' lobes under the same energy bound as the surface's.
         let fly_unit: Vec<Vec<f32>> = fly_params.par_iter().map(|p| unit_albedos(p, options.fit.reading)).collect();
-        energy.worst_flyaway_albedo = fly_params.iter().zip(&fly_unit).map(|(p, u)| lobe_albedo(p, u)).fold(0.0, f32::max);
-        let (fly_params, fly_scales): (Vec<ClothParams>, Vec<f32>) = fly_params.iter().zip(&fly_unit).map(|(p, u)| cap_lobes(p, u)).unzip();
-        energy.flyaway_entries_capped = fly_scales.iter().filter(|&&s| s < 1.0).count();
+        let (fly_params, fly_albedos): (Vec<ClothParams>, Vec<f32>) = fly_params.iter().zip(&fly_unit).map(|(p, u)| cap_lobes(p, u)).unzip();
+        (energy.worst_flyaway_albedo, energy.flyaway_entries_capped) = albedo_summary(&fly_albedos);
         bar.finish();
         rep.voxels = geometry.flyaways.len();
         model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
