@@ -422,9 +422,18 @@ fn render_shades_a_light_behind_a_bsdf() {
         if backend == "gpu" {
             assert!(stdout.contains("transmission (a light behind the cloth)"), "{stdout}");
         }
+        assert!(stdout.contains("only the model's transmission term shades it"), "{backend}: {stdout}");
         images.push(fabric_runtime::image::Image::read(&out, 1.0).unwrap());
     }
     assert!(images[0].mean() > 0.0, "light comes through");
     let rmse = fabric_runtime::metrics::relative_rmse(&images[0], &images[1]).unwrap();
     assert!(rmse < 1e-3, "GPU vs CPU {rmse}");
+    // Without a transmission term the same light leaves the frame black, and says so.
+    let reflective = tmp("reflective.hyb");
+    fabric_runtime::hybrid::format::write_file(&fabric_runtime::hybrid::examples::synthetic_model(32, 5), &reflective).unwrap();
+    let out = tmp("backlit-reflective.exr");
+    let o = fabric().arg("render").arg(&reflective).args(["--backend", "cpu", "--light-dir=0.2,0.3,-1", "--periodic", "--size", "48x32", "--out"]).arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && stdout.contains("warning: the light is below the tile") && stdout.contains("no transmission term"), "{stdout}");
+    assert_eq!(fabric_runtime::image::Image::read(&out, 1.0).unwrap().mean(), 0.0);
 }

@@ -26,6 +26,7 @@
 use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission, K_MAX, TAU_MAX, cloth_angles, cloth_lobe_shape, cloth_mirror_z, cloth_transmission, cloth_transmission_attenuation};
 use glam::{DVec3, Vec3};
 
+use super::cluster_fit::LOBE_SUPPORT_MIN;
 use super::nnls::nnls_gram;
 use super::simplex::{NelderMead, nelder_mead_restarts};
 
@@ -116,12 +117,18 @@ pub fn predict_transmission(t: &ClothTransmission, g: &TransGeo) -> Vec3 {
 }
 
 /// Gram matrix (2×2), Aᵀb per channel and bᵀb per channel of the basis [c, S·c],
-/// c = |ω_i.z|·A(τ).
-fn normal_equations(samples: &[TransTarget], stride: usize, beta: f32, gamma: f32, tau: f32) -> ([f64; 4], [[f64; 2]; 3], [f64; 3]) {
+/// c = |ω_i.z|·A(τ); and the lobe's support, max S / S(0, 0) over the samples with c > 0
+/// (as `cluster_fit`'s, [`LOBE_SUPPORT_MIN`]).
+fn normal_equations(samples: &[TransTarget], stride: usize, beta: f32, gamma: f32, tau: f32) -> ([f64; 4], [[f64; 2]; 3], [f64; 3], f64) {
     let (mut g, mut atb, mut btb) = ([0f64; 4], [[0f64; 2]; 3], [0f64; 3]);
+    let mut best = 0f32;
     for s in samples.iter().step_by(stride.max(1)) {
         let c = (s.geo.cos * cloth_transmission_attenuation(tau, s.geo.mu_i, s.geo.mu_o)) as f64;
-        let b = [c, c * cloth_lobe_shape(s.geo.theta_sum, s.geo.phi_sum, beta, gamma, BrdfReading::Bounded) as f64];
+        let shape = cloth_lobe_shape(s.geo.theta_sum, s.geo.phi_sum, beta, gamma, BrdfReading::Bounded);
+        if c > 0.0 {
+            best = best.max(shape);
+        }
+        let b = [c, c * shape as f64];
         g[0] += b[0] * b[0];
         g[1] += b[0] * b[1];
         g[3] += b[1] * b[1];
@@ -133,12 +140,22 @@ fn normal_equations(samples: &[TransTarget], stride: usize, beta: f32, gamma: f3
         }
     }
     g[2] = g[1];
-    (g, atb, btb)
+    let support = (best / cloth_lobe_shape(0.0, 0.0, beta, gamma, BrdfReading::Bounded)) as f64;
+    (g, atb, btb, support)
 }
 
-/// The k's of (β, γ) by NNLS per channel, and the residual.
+/// The k's of (β, γ) by NNLS per channel, and the residual; a lobe the samples never
+/// come near ([`LOBE_SUPPORT_MIN`]) is held at k = 0.
 fn solve(samples: &[TransTarget], stride: usize, beta: f32, gamma: f32, tau: f32) -> Option<([[f64; 2]; 3], f64)> {
-    let (g, atb, btb) = normal_equations(samples, stride, beta, gamma, tau);
+    let (mut g, mut atb, btb, support) = normal_equations(samples, stride, beta, gamma, tau);
+    if support < LOBE_SUPPORT_MIN {
+        g[1] = 0.0;
+        g[2] = 0.0;
+        g[3] = 0.0;
+        for a in &mut atb {
+            a[1] = 0.0;
+        }
+    }
     let mut k = [[0f64; 2]; 3];
     let mut residual = 0.0;
     for ch in 0..3 {
@@ -195,7 +212,7 @@ pub fn refine_transmission(samples: &[TransTarget], cluster: &ClothTransmission,
     if samples.is_empty() || cluster.lobe.beta <= 0.0 {
         return *cluster;
     }
-    let (mut g, atb, btb) = normal_equations(samples, 1, cluster.lobe.beta, cluster.lobe.gamma, cluster.tau);
+    let (mut g, atb, btb, _) = normal_equations(samples, 1, cluster.lobe.beta, cluster.lobe.gamma, cluster.tau);
     let lambda = ridge * 0.5 * (g[0] + g[3]);
     g[0] += lambda;
     g[3] += lambda;

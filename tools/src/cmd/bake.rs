@@ -360,7 +360,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     let worst = e.worst_cluster_albedo.max(e.worst_texel_albedo).max(e.worst_flyaway_albedo);
     if e.clusters_capped + e.texels_capped + e.flyaway_entries_capped > 0 {
         println!(
-            "lobe energy: the fitted lobes reflected up to {worst:.1}x what they receive; scaled down to an albedo of {}: {} of {k} clusters, {} texels, {} flyaway entries (the pairs saw those lobes by their tails alone: more pairs fit them)",
+            "lobe energy: the fitted lobes reflected up to {worst:.1}x what they receive; scaled down to an albedo of {}: {} of {k} clusters, {} texels, {} flyaway entries (few pairs constrain those lobes: more pairs fit them)",
             e.lobe_albedo_max,
             e.clusters_capped,
             e.texels_capped,

@@ -5,7 +5,8 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use fabric_runtime::gpu::MeshPass;
-use fabric_runtime::scene::Mesh;
+use fabric_runtime::hybrid::HybridModel;
+use fabric_runtime::scene::{Light, Mesh};
 use fabric_runtime::vk::{Device, DeviceOptions};
 
 use super::render_cpu::CpuRenderFlags;
@@ -121,6 +122,25 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
 /// A frame in which no pixel met the tile is the background alone: say why, rather than
 /// write an empty image without a word.
+/// Says when no light reaches the tile from above — every light a directional one at or
+/// below the tile's plane (polar angle ≥ 90°) or a point light below its box, and no
+/// environment map — which leaves a model without a transmission term black.
+pub(super) fn warn_if_lit_from_below(model: &HybridModel, lights: &[Light], env: bool) {
+    let bottom = model.bounds().min.z;
+    let above = |l: &Light| match l {
+        Light::Directional { dir_to_light, .. } => dir_to_light.z > 0.0,
+        Light::Point { position, .. } => position.z > bottom,
+    };
+    if env || lights.is_empty() || lights.iter().any(above) {
+        return;
+    }
+    if model.has_transmission() {
+        println!("note: the light is below the tile: only the model's transmission term shades it (light through the cloth)");
+    } else {
+        println!("warning: the light is below the tile (a direction at 90° or more from its normal, or a point below its box) and the model has no transmission term (fabric bake --bsdf): no light reaches what the camera sees, and the image is black but for the background");
+    }
+}
+
 pub(super) fn warn_if_tile_unseen(tile_pixels: u64) {
     if tile_pixels == 0 {
         println!("warning: no pixel sees the tile: the camera is below its top plane or looks away from it (a hybrid model is drawn from above; --view-angles takes θ < 90°); the image is the background");

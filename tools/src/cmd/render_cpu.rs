@@ -189,6 +189,7 @@ pub fn run(model_path: &Path, camera: &CameraArgs, light: &LightArgs, env: &EnvA
         stats.level_pixels
     );
     super::render::warn_if_tile_unseen(stats.tile_pixels);
+    super::render::warn_if_lit_from_below(&model, &lights, options.env.is_some());
     if stats.step_limited_pixels > 0 || stats.step_limited_shadow_rays > 0 {
         println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", stats.step_limited_pixels, stats.step_limited_shadow_rays, options.max_steps);
     }

@@ -96,6 +96,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
         None => {
             println!("{variant}; {} pixels on the tile, {} on the surface, {} with flyaways; pixels per level {:?}", s.tile_pixels, s.surface_pixels, s.flyaway_pixels, s.level_pixels);
             super::render::warn_if_tile_unseen(s.tile_pixels);
+            super::render::warn_if_lit_from_below(&model, &lights, options.env.is_some());
         }
     }
     if s.step_limited_pixels > 0 || s.step_limited_shadow_rays > 0 {
