@@ -127,6 +127,13 @@ fn gpu_matches_the_cpu_twin() {
     ] {
         assert_twins_agree(case.name, &compare(&pass, &synthetic, &lights, &case));
     }
+    // A tile of 20 texels, which levels 3 and 4 do not divide, seen over many repeats:
+    // both twins bring a coarse lookup into the first repeat (model.glsl, bilinear_texel).
+    let odd = examples::synthetic_model(20, 3);
+    for (extent, name) in [(6.0f32, "20-texel tile far, periodic"), (20.0, "20-texel tile farther, periodic (levels 3 and 4)")] {
+        let case = Case { name, camera: Camera::orbit_orthographic(30.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, extent, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
+        assert_twins_agree(case.name, &compare(&pass, &odd, &lights, &case));
+    }
     // A model without a chain, from afar: level 0 through its grid of 4 × 4 nearest texels.
     let mut bare = synthetic.clone();
     bare.levels.truncate(1);

@@ -253,7 +253,19 @@ uvec2 texel_at(vec3 p, uint level) {
 float bilinear_texel(vec3 p, uint level, int c, out uvec2 ij) {
     GpuLevel l = model.levels[level];
     ivec2 dims = ivec2(l.dims);
-    precise vec2 u = ldexp((p.xy - model.origin) * model.inv_texel, ivec2(-int(level))) - vec2(0.5);
+    precise vec2 x = (p.xy - model.origin) * model.inv_texel;
+    // A periodic tile whose size 2^level does not divide: into the first repeat (the
+    // level's grid is longer than the tile; see the twin).
+    int span = 1 << level;
+    if (model_periodic()) {
+        for (int a = 0; a < 2; ++a) {
+            if (model.n[a] % span != 0) {
+                precise float k = floor(x[a] / float(model.n[a]));
+                x[a] -= float(model.n[a]) * k;
+            }
+        }
+    }
+    precise vec2 u = ldexp(x, ivec2(-int(level))) - vec2(0.5);
     vec2 f0 = floor(u);
     precise float fx = u.x - f0.x;
     precise float fy = u.y - f0.y;

@@ -347,8 +347,22 @@ impl<'a> Scene<'a> {
         let m = self.model;
         let l = &m.levels[level];
         let (w, h) = (l.width as i32, l.height as i32);
+        let mut x = (p.truncate() - m.tile.origin) * m.inv_texel_size();
+        // On a periodic tile whose size 2^level does not divide, the level's grid repeats
+        // every (its size · 2^level) level-0 texels, longer than the tile: lookups in later
+        // repeats would drift by a texel per repeat. The point is brought into the first
+        // repeat then; where 2^level divides the size the grids agree and nothing changes.
+        let span = 1i32 << level;
+        if self.options.periodic {
+            let n0 = [m.width() as i32, m.height_px() as i32];
+            for a in 0..2 {
+                if n0[a] % span != 0 {
+                    x[a] -= n0[a] as f32 * (x[a] / n0[a] as f32).floor();
+                }
+            }
+        }
         // 2^-level is exact: the GPU twin's ldexp.
-        let u = (p.truncate() - m.tile.origin) * m.inv_texel_size() * (1.0 / (1u32 << level) as f32) - Vec2::splat(0.5);
+        let u = x * (1.0 / span as f32) - Vec2::splat(0.5);
         let (i0, j0) = (u.x.floor(), u.y.floor());
         let (fx, fy) = (u.x - i0, u.y - j0);
         let index = |i: i32, n: i32| if self.options.periodic { i.rem_euclid(n) } else { i.clamp(0, n - 1) };
