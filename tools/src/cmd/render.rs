@@ -120,8 +120,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// A frame in which no pixel met the tile is the background alone: say why, rather than
-/// write an empty image without a word.
 /// Says when no light reaches the tile from above — every light a directional one at or
 /// below the tile's plane (polar angle ≥ 90°) or a point light below its box, and no
 /// environment map — which leaves a model without a transmission term black.
@@ -141,6 +139,8 @@ pub(super) fn warn_if_lit_from_below(model: &HybridModel, lights: &[Light], env:
     }
 }
 
+/// A frame in which no pixel met the tile is the background alone: say why, rather than
+/// write an empty image without a word.
 pub(super) fn warn_if_tile_unseen(tile_pixels: u64) {
     if tile_pixels == 0 {
         println!("warning: no pixel sees the tile: the camera is below its top plane or looks away from it (a hybrid model is drawn from above; --view-angles takes θ < 90°); the image is the background");
