@@ -261,6 +261,10 @@ pub struct BakeReport {
     pub flyaway_voxels: usize,
     /// The lobes' energy bound (`fit::energy`): what it found and what it scaled down.
     pub energy: EnergyReport,
+    /// Cluster lobes held at k = 0 because no training sample came within three widths
+    /// of their ridge (`cluster_fit::LOBE_SUPPORT_MIN`), of `cluster_lobes` in all.
+    pub unseen_lobes: usize,
+    pub cluster_lobes: usize,
     pub flyaways: Option<FlyawayReport>,
     /// The mip chain's figures per level (fit error, lobes, bytes, time).
     pub prefilter: Option<PrefilterReport>,
@@ -802,6 +806,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         relief: options.relief,
         flyaway_voxels: geometry.flyaways.len(),
         energy,
+        unseen_lobes: fits.iter().map(|f| f.unseen_lobes as usize).sum(),
+        cluster_lobes: fits.iter().map(|f| f.params.lobe_count as usize).sum(),
         flyaways: flyaway_report,
         prefilter: prefilter_report,
         transmission: transmission_report,

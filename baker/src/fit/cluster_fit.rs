@@ -182,6 +182,9 @@ pub struct ClusterFit {
     pub target2: f64,
     pub evals: usize,
     pub samples: usize,
+    /// Lobes held at k = 0 because no sample came near their ridge
+    /// ([`LOBE_SUPPORT_MIN`]) in the final solve.
+    pub unseen_lobes: u32,
     /// Why the fit fell back (no samples, non-finite data), if it did.
     pub problem: Option<String>,
 }
@@ -307,13 +310,21 @@ fn normal_equations<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamm
     e
 }
 
+/// What [`solve_linear`] found: coefficients [channel][basis], Σ residual², and how many
+/// lobes it held at k = 0 because the samples never came near them.
+struct LinearSolve {
+    coefficients: [Vec<f64>; 3],
+    residual2: f64,
+    unseen: u32,
+}
+
 /// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
 /// matrix, each lobe the samples never come near ([`LOBE_SUPPORT_MIN`]) held at k = 0.
-/// Returns (coefficients [channel][basis], Σ residual²).
 #[allow(clippy::too_many_arguments)] // the non-linear parameters, each used once
-fn solve_linear<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<([Vec<f64>; 3], f64)> {
+fn solve_linear<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &[f32], a: f32, eta: f32, o: &ClusterFitOptions) -> Option<LinearSolve> {
     let mut e = normal_equations(samples, stride, beta, gamma, a, eta, o.reading);
     e.drop_unsupported();
+    let unseen = e.support.iter().filter(|s| **s < LOBE_SUPPORT_MIN).count() as u32;
     let NormalEquations { n, gram, atb, btb, .. } = e;
     let mut residual = 0.0;
     let mut coefficients: [Vec<f64>; 3] = Default::default();
@@ -322,7 +333,7 @@ fn solve_linear<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &
         residual += sol.residual2;
         coefficients[ch] = sol.x;
     }
-    residual.is_finite().then_some((coefficients, residual))
+    residual.is_finite().then_some(LinearSolve { coefficients, residual2: residual, unseen })
 }
 
 /// The model's radiance for one sample under BRDF `p` (its first lobes, η and a as
@@ -389,7 +400,7 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     // A failed fit is black, reported as a problem, and still a valid BRDF (the file
     // needs at least one lobe per texel): one lobe of zero weight.
     let black_lobe = ClothLobe { k: Vec3::ZERO, beta: 1.0, gamma: 0.0 };
-    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[black_lobe]), residual2: target2, target2, evals: 0, samples: samples.len(), problem: Some(problem) };
+    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[black_lobe]), residual2: target2, target2, evals: 0, samples: samples.len(), unseen_lobes: 0, problem: Some(problem) };
     if samples.is_empty() {
         return fallback("no samples: the model shows none of this cluster's texels along any training ray".into());
     }
@@ -399,7 +410,7 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     }
     let stride = samples.len().div_ceil(o.search_samples.max(1));
     let objective = |x: &[f64]| match decode(x, o) {
-        Some((beta, gamma, a, eta)) => solve_linear(samples, stride, &beta, &gamma, a, eta, o).map_or(f64::INFINITY, |(_, r)| r),
+        Some((beta, gamma, a, eta)) => solve_linear(samples, stride, &beta, &gamma, a, eta, o).map_or(f64::INFINITY, |s| s.residual2),
         None => f64::INFINITY,
     };
     // Starts: narrow-to-wide lobes, φ falloff moderate, mild shadowing.
@@ -420,12 +431,12 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     let Some((beta, gamma, a, eta)) = decode(&best_x, o) else {
         return fallback("search left the parameter box".into());
     };
-    let Some((coef, residual2)) = solve_linear(samples, 1, &beta, &gamma, a, eta, o) else {
+    let Some(LinearSolve { coefficients: coef, residual2, unseen }) = solve_linear(samples, 1, &beta, &gamma, a, eta, o) else {
         return fallback("linear solve failed".into());
     };
     let k = |j: usize| Vec3::new(coef[0][j] as f32, coef[1][j] as f32, coef[2][j] as f32).clamp(Vec3::ZERO, Vec3::splat(K_MAX));
     let lobes: Vec<ClothLobe> = (0..n).map(|j| ClothLobe { k: k(1 + j), beta: beta[j], gamma: gamma[j] }).collect();
-    ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), problem: None }
+    ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), unseen_lobes: unseen, problem: None }
 }
 
 /// Fits one cluster's BRDF and its frame offsets ([`FrameOffset`], Eq. 8 with the frame
@@ -475,7 +486,7 @@ pub fn fit_cluster_framed(samples: &[Target], rays: &[TargetRay], frames: &[Clot
         let p = fit.params;
         let (beta, gamma): (Vec<f32>, Vec<f32>) = p.lobes().iter().map(|l| (l.beta, l.gamma)).unzip();
         let objective = |x: &[f64]| match expand(x) {
-            Some(offs) => solve_linear(&regeo(&offs, stride), 1, &beta, &gamma, p.a, p.eta, o).map_or(f64::INFINITY, |(_, r)| r),
+            Some(offs) => solve_linear(&regeo(&offs, stride), 1, &beta, &gamma, p.a, p.eta, o).map_or(f64::INFINITY, |s| s.residual2),
             None => f64::INFINITY,
         };
         // Starts: the offsets so far; with lobes of their own, also each later lobe's
@@ -581,14 +592,16 @@ mod tests {
         assert!(e.support[0] < LOBE_SUPPORT_MIN, "support {}", e.support[0]);
         let unruled = nnls_gram(&e.gram, &e.atb[0], e.btb[0], e.n).unwrap();
         assert!(unruled.x[1] > 1.0e3, "{:?}", unruled.x);
-        let (coef, _) = solve_linear(&samples, 1, &[0.03], &[2.0], 0.0, 1.5, &o).unwrap();
-        assert_eq!(coef[0][1], 0.0, "{:?}", coef);
-        let (coef, _) = solve_linear(&samples, 1, &[0.2], &[2.0], 0.0, 1.5, &o).unwrap();
-        assert!(coef[0][1] > 0.0, "{:?}", coef);
+        let held = solve_linear(&samples, 1, &[0.03], &[2.0], 0.0, 1.5, &o).unwrap();
+        assert!(held.coefficients[0][1] == 0.0 && held.unseen == 1, "{:?}", held.coefficients);
+        let seen = solve_linear(&samples, 1, &[0.2], &[2.0], 0.0, 1.5, &o).unwrap();
+        assert!(seen.coefficients[0][1] > 0.0 && seen.unseen == 0, "{:?}", seen.coefficients);
         // The whole fit: every lobe it keeps is one the samples saw near its ridge.
         let fit = fit_cluster(&samples, &ClusterFitOptions { lobes: 2, ..Default::default() });
         let (beta, gamma): (Vec<f32>, Vec<f32>) = fit.params.lobes().iter().map(|l| (l.beta, l.gamma)).unzip();
         let e = normal_equations(&samples, 1, &beta, &gamma, fit.params.a, fit.params.eta, o.reading);
+        let unseen = e.support.iter().filter(|s| **s < LOBE_SUPPORT_MIN).count() as u32;
+        assert_eq!(fit.unseen_lobes, unseen);
         for (l, support) in fit.params.lobes().iter().zip(&e.support) {
             assert!(l.k.max_element() == 0.0 || *support >= LOBE_SUPPORT_MIN, "{l:?}: support {support}");
             assert!(l.k.max_element() < 100.0, "{l:?}");

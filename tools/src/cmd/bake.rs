@@ -370,6 +370,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
     } else {
         println!("lobe energy: worst albedo of the fitted lobes {worst:.2} (bound {}): none scaled", e.lobe_albedo_max);
     }
+    if r.unseen_lobes > 0 {
+        println!("unseen lobes: {} of {} cluster lobes held at k = 0: no training pair came within three widths of their ridge (more pairs place them)", r.unseen_lobes, r.cluster_lobes);
+    }
     if let Some(f) = &r.flyaways {
         println!(
             "flyaways: {} voxels in {} clusters; {} training pixels cross them: error {:.1}% with them black, {:.1}% fitted{}",
