@@ -588,6 +588,66 @@ fn light_behind_the_cloth_matches_the_cpu_twin_and_costs_nothing_when_absent() {
     assert_no_validation_errors(&device);
 }
 
+/// The built-in sky turned `rotate_deg` with each texel row taken from `row(y, h)`
+/// (upside down, or black below the horizon), prefiltered, its sun a light.
+fn sky_remapped(rotate_deg: f32, row: impl Fn(u32, u32) -> Option<u32>) -> fabric_runtime::cpu::EnvLight {
+    use fabric_runtime::scene::{EnvMapOptions, ExtractOptions, PrefilteredEnv, Sky};
+    let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg }).unwrap();
+    let (w, h) = (sky.width(), sky.height());
+    let texels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| row(y, h).map_or(Vec3::ZERO, |r| sky.texel(x, r))).collect();
+    fabric_runtime::cpu::EnvLight::new(PrefilteredEnv::with_lights(&sky.with_texels(texels).unwrap(), ExtractOptions::default()).unwrap())
+}
+
+/// A BSDF under a map with light below the sheet (the sky upside down): the map comes
+/// through the cloth in both twins alike, near, far and edited; a map black below the
+/// horizon compiles the term out and draws what the variant with it draws.
+#[test]
+fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
+    use fabric_runtime::brdf::{ClothLobe, ClothTransmission};
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let mut model = examples::synthetic_model(64, 3);
+    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5 }, 8);
+    let below = sky_remapped(20.0, |y, h| Some(h - 1 - y));
+    assert!(below.prefiltered.lights_below() && below.prefiltered.lights.iter().all(|l| matches!(*l, Light::Directional { dir_to_light, .. } if dir_to_light.z < 0.0)), "the sun below the sheet");
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, env: Some(below.clone()), ..Default::default() };
+    let near = Camera { origin: Vec3::new(0.4, -0.6, 0.9), target: Vec3::new(0.5, 0.5, 0.05), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 64, height: 48 };
+    let far = Camera::orbit_orthographic(50.0, 30.0, Vec3::new(0.5, 0.5, 0.05), 3.0, 24.0, 24, 20);
+    let edits = fabric_runtime::cpu::Edits { tint: Vec3::new(1.0, 0.5, 0.25), roughness_scale: 1.5, tangent_rotation: 0.7, mask: None };
+    for case in [
+        Case { name: "map below, near", camera: near.clone(), options: opts.clone() },
+        Case { name: "map below, far", camera: far.clone(), options: opts.clone() },
+        Case { name: "map below, edited", camera: near.clone(), options: CpuRenderOptions { edits: edits.clone(), ..opts.clone() } },
+    ] {
+        let a = compare(&pass, &model, &[], &case);
+        println!("{}: relative RMSE {:.2e}, {:.4} of pixels differ", case.name, a.rmse, a.differing);
+        assert!(a.rmse < 1e-3 && a.differing < 0.005, "{}: relative RMSE {}, {} of pixels differ", case.name, a.rmse, a.differing);
+    }
+    // The map's light through the cloth is what the model shows beyond its sun: without
+    // the transmission term only the reflected sky (its upper half, the ground) is left.
+    let g = pass.upload(&model, true).unwrap();
+    let lit = pass.render(&g, &near, &[], &opts, None).unwrap();
+    assert!(lit.variant.transmission);
+    let mut brdf_only = model.clone();
+    brdf_only.levels.iter_mut().for_each(|l| l.transmission = None);
+    let dark = pass.render(&pass.upload(&brdf_only, true).unwrap(), &near, &[], &opts, None).unwrap();
+    assert!(!dark.variant.transmission && lit.image.mean() > 2.0 * dark.image.mean(), "{} vs {}", lit.image.mean(), dark.image.mean());
+    let sun_only = render(&model, &near, &below.prefiltered.lights, &CpuRenderOptions { env: None, ..opts.clone() }).unwrap();
+    println!("map below, near: with the term {:.4e}, without {:.4e}, the sun alone {:.4e}", lit.image.mean(), dark.image.mean(), sun_only.mean());
+    assert!(lit.image.mean() > 1.05 * sun_only.mean(), "the map itself comes through: {} vs the sun alone {}", lit.image.mean(), sun_only.mean());
+    // Black below the horizon: no light comes up, the term is compiled out, and forcing it
+    // in draws the same image (the map's flag gates it).
+    let above_only = sky_remapped(20.0, |y, h| ((y as f32 + 0.5) / (h as f32) < 0.5).then_some(y));
+    assert!(!above_only.prefiltered.lights_below());
+    let up = CpuRenderOptions { env: Some(above_only), ..opts.clone() };
+    let skip = pass.render(&g, &near, &[], &up, None).unwrap();
+    assert!(!skip.variant.transmission);
+    let forced = pass.render(&g, &near, &[], &up, Some(Variant { transmission: true, ..skip.variant })).unwrap();
+    assert_eq!(skip.image, forced.image);
+    assert!(relative_rmse(&skip.image, &render(&model, &near, &[], &up).unwrap()).unwrap() < 1e-3);
+    assert_no_validation_errors(&device);
+}
+
 #[test]
 fn view_tilts_match_the_cpu_twin_and_change_the_coarse_levels() {
     let device = device();

@@ -3,7 +3,8 @@
 // "Extensions"; runtime/HYBRID_FORMAT.md §6).
 //
 // Twin: runtime/src/cpu/env_shading.rs (env_erf, env_theta_cells, lobe_env_nodes,
-// texel_env_response; the module docs there are the definition); the lookups are
+// texel_env_response, transmission_env_diffuse_factor, transmission_env_response; the
+// module docs there are the definition); the lookups are
 // common/env_lookup.glsl. Included only by programs that define
 // HYBRID_ENV (hybrid.comp): binding 11 holds the levels, params.env_* say where.
 #ifndef ENV_SHADING_GLSL
@@ -101,11 +102,17 @@ vec3 env_group_flush(inout EnvGroup g) {
 }
 
 // One lobe's SG mixture of at most `nodes` SGs, read from the prefiltered map in at most
-// `lookups` groups (lobe_env_nodes, EnvGroup, EnvBudget).
-vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, uint nodes, uint lookups) {
+// `lookups` groups (lobe_env_nodes, EnvGroup, EnvBudget). `through`: the transmission
+// lobe of attenuation `tau` under the map below the sheet (EnvSide::Transmitted; the
+// bounded reading, no Fresnel or shadowing, axes mirrored), else a reflection lobe.
+vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, bool through, float tau, uint nodes, uint lookups) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
     if (max(max(k.x, k.y), k.z) <= 0.0) {
         return vec3(0.0);
+    }
+    if (through) {
+        reading = CLOTH_READING_BOUNDED;
+        volumetric = false;
     }
     ClothAngles ao = cloth_angles(f, wo);
     float theta_c = -ao.theta;
@@ -144,7 +151,7 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
         float sp = sin(phi);
         float cp = cos(phi);
         float pf = cloth_phi_falloff(phi + ao.phi, lobe.gamma);
-        vec3 r_phi = k * (cloth_shadowing(cp, a) * (bounded ? pf : 1.0));
+        vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cp, a)) * (bounded ? pf : 1.0));
         if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
             continue;
         }
@@ -161,13 +168,14 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
             if (!(cos_n > 0.0) || !(wi.z > 0.0)) {
                 continue;
             }
-            vec3 r = r_phi * (cell.fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
+            // Through the cloth: R = k_t P A(tau; w'.z, wo.z) w'.z, read at w' mirrored.
+            vec3 r = through ? r_phi * (cloth_transmission_attenuation(tau, wi.z, wo.z) * wi.z) : r_phi * (cell.fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
             vec3 weight = r * (cell.mass * d_phi * cell.c);
             if (max(max(weight.x, weight.y), weight.z) <= 0.0) {
                 continue;
             }
             float sigma = max(cell.sigma, 0.4 * d_phi * cell.c);
-            env_group_add(group, wi, weight, sigma);
+            env_group_add(group, through ? cloth_mirror_z(wi) : wi, weight, sigma);
             emitted += 1u;
             if (emitted % per_group == 0u) {
                 sum += env_group_flush(group);
@@ -190,9 +198,44 @@ vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, 
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
-        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, nodes, lookups);
+        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, false, 0.0, nodes, lookups);
     }
     return resp;
+}
+
+// transmission_env_diffuse_factor: c(tau) = 1 - tau + tau^2 e^tau E1(tau), e^tau E1 by
+// Abramowitz & Stegun 5.1.53 (tau < 1) and 5.1.56.
+float transmission_env_diffuse_factor(float tau) {
+    float t = min(max(tau, 0.0), CLOTH_TAU_MAX);
+    if (!(t > 0.0)) {
+        return 1.0;
+    }
+    float ex_e1;
+    if (t < 1.0) {
+        float e1 = -0.57721566 - log(t) + t * (0.99999193 + t * (-0.24991055 + t * (0.05519968 + t * (-0.00976004 + t * 0.00107857))));
+        ex_e1 = exp(t) * e1;
+    } else {
+        float num = (((t + 8.5733287) * t + 18.059017) * t + 8.634761) * t + 0.26777373;
+        float den = (((t + 9.573322) * t + 25.632956) * t + 21.099653) * t + 3.958497;
+        ex_e1 = num / (den * t);
+    }
+    return max(1.0 - t + t * t * ex_e1, 0.0);
+}
+
+// transmission_env_response of the texel's transmission term, edited
+// (edited_transmission): the map below the sheet through the cloth toward wo.
+vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes, uint lookups) {
+    ClothTransmission t;
+    ClothFrame f;
+    if (!(wo.z > 0.0) || !edited_transmission(r, e, rotate, t, f)) {
+        return vec3(0.0);
+    }
+    vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
+    vec3 resp = vec3(0.0);
+    if (max(max(kd.x, kd.y), kd.z) > 0.0) {
+        resp = kd * env_irradiance(vec3(0.0, 0.0, -1.0)) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z));
+    }
+    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, nodes, lookups);
 }
 
 #endif // ENV_SHADING_GLSL

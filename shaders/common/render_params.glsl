@@ -45,7 +45,8 @@ struct GpuRenderParams {
     float edit_rotation;  // radians
     uvec2 mask_dims;      // 0 x 0: no mask
     GpuLight lights[GPU_MAX_LIGHTS];
-    uvec4 env_info;       // x: SG levels (0: no environment), y: 1 = rays that miss see it
+    uvec4 env_info;       // x: SG levels (0: no environment), y: 1 = rays that miss see it,
+                          // z: 1 = it lights transmission terms from below
     vec4 env_frame;       // cos, sin of the map's rotation; sigma_0 of level 0
     uvec4 env_levels[9];  // offset into binding 11, width, height; [8]: the irradiance map
 };
@@ -69,8 +70,9 @@ layout(constant_id = 3) const bool RELIEF = true;
 layout(constant_id = 4) const uint LOBE_BOUND = 8u;
 // Environment light (env_shading.glsl; programs that define HYBRID_ENV).
 layout(constant_id = 5) const bool HAS_ENV = false;
-// A light behind the sheet and a model with a transmission term (a BSDF, format 1.3):
-// off, a frame with every light in front pays nothing for transmission.
+// A light behind the sheet, or an environment map with light below the horizon, and a
+// model with a transmission term (a BSDF, format 1.3): off, a frame with every light in
+// front pays nothing for transmission.
 layout(constant_id = 6) const bool TRANSMISSION = false;
 // Lookups per axis of the coarse levels' box grid (level.glsl, box_grid; 1: one bilinear
 // lookup per anisotropic tap). Twin: CoarseFilter::grid.

@@ -109,19 +109,18 @@ vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint read
     return resp;
 }
 
-// Transmitted radiance toward wo per unit irradiance from wi on the other side of the
-// tile plane: the texel's transmission term in lobe 0's frame, edited as its lobes are
-// (Edit::apply). Twin: texel_transmission_response (runtime/src/cpu/shading.rs).
-vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo) {
+// The texel's transmission term and lobe 0's frame, edited as its lobes are
+// (Edit::apply); false where the texel has none.
+bool edited_transmission(TexelRef r, Edit e, bool rotate, out ClothTransmission t, out ClothFrame f) {
+    f = r.frame;
     if (r.trans == NO_NODE) {
-        return vec3(0.0);
+        return false;
     }
-    ClothTransmission t = packed_transmission(r.trans);
+    t = packed_transmission(r.trans);
     t.kd *= e.tint;
     t.lobe.k *= e.tint;
     t.lobe.beta *= e.roughness_scale;
     t.lobe.gamma *= e.roughness_scale;
-    ClothFrame f = r.frame;
     if (r.framed) {
         uvec4 h = brdf_headers[r.header];
         uvec4 l = brdf_lobes[r.lobe_base + h.w];
@@ -131,6 +130,18 @@ vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 
         vec3 tt = f.t * cos(e.tangent_rotation) + f.b * sin(e.tangent_rotation);
         f.t = tt;
         f.b = cross(f.n, tt);
+    }
+    return true;
+}
+
+// Transmitted radiance toward wo per unit irradiance from wi on the other side of the
+// tile plane: the texel's transmission term in lobe 0's frame (edited_transmission).
+// Twin: texel_transmission_response (runtime/src/cpu/shading.rs).
+vec3 texel_transmission_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo) {
+    ClothTransmission t;
+    ClothFrame f;
+    if (!edited_transmission(r, e, rotate, t, f)) {
+        return vec3(0.0);
     }
     return cloth_transmission_response(t, f, wi, wo);
 }
@@ -365,6 +376,11 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], flo
             TexelRef r;
             float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
             radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
+            // The map below the sheet through the cloth (Scene::env_through): TRANSMISSION
+            // is on only where the map has light below (PrefilteredEnv::lights_below).
+            if (TRANSMISSION && params.env_info.z != 0u) {
+                radiance += w * texel_env_transmission(r, e, true, wo, ENV_NODES, ENV_LOOKUPS);
+            }
         }
     }
 #endif

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::flyaways::{FlyawayGrid, march_flyaways, visit_flyaways};
 use super::heightfield::{HeightTracer, HfTrace};
-use super::env_shading::{EnvBudget, texel_env_response};
+use super::env_shading::{EnvBudget, texel_env_response, transmission_env_response};
 use crate::brdf::visible_normal::{tilt_frames, view_visibility};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
@@ -713,7 +713,7 @@ impl<'a> Scene<'a> {
         if level == 0 && points.is_empty() {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
-            let radiance = shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE);
+            let radiance = shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(&b, wo);
             return (radiance, shadow_limited);
         }
         // The texels read and their weights, in the GPU twin's order (surface_corner).
@@ -748,7 +748,7 @@ impl<'a> Scene<'a> {
         let texels: Vec<(TexelBrdf, f32)> = distinct_corners(&corners).into_iter().map(|((i, j), w)| (texel(i, j), w)).collect();
         let mut radiance = shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible);
         if self.options.env.is_some() {
-            radiance += texels.iter().map(|(b, w)| *w * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE)).sum::<Vec3>();
+            radiance += texels.iter().map(|(b, w)| *w * (self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(b, wo))).sum::<Vec3>();
         }
         (radiance, shadow_limited)
     }
@@ -759,6 +759,16 @@ impl<'a> Scene<'a> {
         match &self.options.env {
             Some(env) => texel_env_response(b, wo, self.reading, volumetric, diffuse, budget, &env.prefiltered),
             None => Vec3::ZERO,
+        }
+    }
+
+    /// The map below the sheet through a surface texel's transmission term (zero without
+    /// a map, a term, or light below: `PrefilteredEnv::lights_below`, the GPU twin's
+    /// TRANSMISSION rule). Unshadowed, as lights behind the sheet are (shading.rs).
+    fn env_through(&self, b: &TexelBrdf, wo: Vec3) -> Vec3 {
+        match &self.options.env {
+            Some(env) if !b.transmission.is_zero() && env.prefiltered.lights_below() => transmission_env_response(&b.transmission, &b.frames[0], wo, EnvBudget::SURFACE, &env.prefiltered),
+            _ => Vec3::ZERO,
         }
     }
 

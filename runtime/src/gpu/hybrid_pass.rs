@@ -230,12 +230,15 @@ impl HybridPass {
     }
 
     /// Whether any of `lights` can be behind the tile's sheet (below its top plane, z up):
-    /// a directional light from below, or a point light under the top plane.
-    pub fn light_behind_tile(model: &GpuHybridModel, lights: &[Light]) -> bool {
-        lights.iter().any(|l| match *l {
-            Light::Directional { dir_to_light, .. } => dir_to_light.z < 0.0,
-            Light::Point { position, .. } => position.z < model.model.tile.top_z,
-        })
+    /// a directional light from below, or a point light under the top plane; or the
+    /// options' environment map has light below the horizon
+    /// (`PrefilteredEnv::lights_below`, the CPU's rule for the map through the cloth).
+    pub fn light_behind_tile(model: &GpuHybridModel, lights: &[Light], options: &CpuRenderOptions) -> bool {
+        options.env.as_ref().is_some_and(|e| e.prefiltered.lights_below())
+            || lights.iter().any(|l| match *l {
+                Light::Directional { dir_to_light, .. } => dir_to_light.z < 0.0,
+                Light::Point { position, .. } => position.z < model.model.tile.top_z,
+            })
     }
 
     fn pipeline(&self, v: Variant) -> Result<Arc<Pipeline>, GpuRenderError> {
@@ -315,10 +318,10 @@ impl HybridPass {
         if !(uv_scale.is_finite() && uv_scale.min_element() > 0.0) {
             return Err(CpuRenderError::Options(format!("UV scale {uv_scale} must be positive and finite")).into());
         }
-        // On a mesh every light is behind some fragment.
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights, !lights.is_empty(), shadows, options));
+        // On a mesh every light, and every part of a map, is behind some fragment.
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights, !lights.is_empty() || options.env.is_some(), shadows, options));
         let pipeline = self.mesh_pipeline(variant)?;
-        let (env, env_buf) = self.env_upload(options)?;
+        let (env, env_buf) = self.env_upload(options, true)?;
         let (params, mask) = self.params_buffers(camera, lights, options, env.as_ref())?;
         // Bindings 9 and 10 are the compute pass's image and statistics: unused here.
         let unused = Buffer::with_data(&self.device, "unused binding", &[0u8; 16], vk::BufferUsageFlags::STORAGE_BUFFER)?;
@@ -386,9 +389,15 @@ impl HybridPass {
 
     /// The prefiltered environment of `options` laid out for binding 11, and the
     /// binding's buffer (one zero texel without a map: the binding is always bound).
-    fn env_upload(&self, options: &CpuRenderOptions) -> Result<(Option<GpuEnv>, Buffer), GpuRenderError> {
+    /// The environment's levels (binding 11) and its parameters; on a mesh (`mesh`) the
+    /// whole map may light a fragment's transmission term from behind.
+    fn env_upload(&self, options: &CpuRenderOptions, mesh: bool) -> Result<(Option<GpuEnv>, Buffer), GpuRenderError> {
         let env = match &options.env {
-            Some(e) => Some(GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?),
+            Some(e) => {
+                let mut g = GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?;
+                g.info[2] |= mesh as u32;
+                Some(g)
+            }
             None => None,
         };
         let texels: &[[f32; 4]] = env.as_ref().map_or(&[[0.0; 4]][..], |e| &e.texels);
@@ -461,8 +470,8 @@ impl HybridPass {
         if options.periodic != model.periodic {
             return Err(GpuRenderError::Periodic { uploaded: model.periodic });
         }
-        let (env, env_buf) = self.env_upload(options)?;
-        let variant = variant.unwrap_or(HybridPass::variant(model, lights, HybridPass::light_behind_tile(model, lights), shadows, options));
+        let (env, env_buf) = self.env_upload(options, false)?;
+        let variant = variant.unwrap_or(HybridPass::variant(model, lights, HybridPass::light_behind_tile(model, lights, options), shadows, options));
         let pipeline = self.pipeline(variant)?;
         let dev = &self.device;
         let (param_buf, mask_buf) = self.params_buffers(camera, lights, options, env.as_ref())?;

@@ -414,7 +414,8 @@ pub struct GpuRenderParams {
     pub mask_dims: [u32; 2],
     pub lights: [GpuLight; GPU_MAX_LIGHTS],
     /// Environment light (env_shading.glsl; [`GpuEnv`]): x the SG levels (0: none),
-    /// y 1 where rays that miss see the map.
+    /// y 1 where rays that miss see the map, z 1 where the map lights transmission terms
+    /// from below (`PrefilteredEnv::lights_below`; on a mesh always).
     pub env_info: [u32; 4],
     /// cos and sin of the map's rotation, σ_0 of level 0.
     pub env_frame: [f32; 4],
@@ -455,6 +456,6 @@ impl GpuEnv {
         }
         push(GPU_ENV_SLOTS - 1, &env.irradiance);
         let (sin, cos) = env.map.rotate_deg().to_radians().sin_cos();
-        Some(GpuEnv { texels, info: [env.levels.len() as u32, background as u32, 0, 0], frame: [cos, sin, env.sigma0, 0.0], levels })
+        Some(GpuEnv { texels, info: [env.levels.len() as u32, background as u32, env.lights_below() as u32, 0], frame: [cos, sin, env.sigma0, 0.0], levels })
     }
 }

@@ -74,6 +74,9 @@ pub struct PrefilteredEnv {
     pub sigma0: f32,
     pub levels: Vec<EnvLevel>,
     pub irradiance: EnvLevel,
+    /// Whether any texel of the chain's map (sources out) below the horizon is lit
+    /// ([`PrefilteredEnv::lights_below`]).
+    pub below: bool,
 }
 
 /// Resolution of the irradiance map.
@@ -116,7 +119,8 @@ impl PrefilteredEnv {
             small = downsample(&small);
         }
         let irradiance = cosine_convolution(&small, IRRADIANCE_WIDTH, IRRADIANCE_WIDTH / 2);
-        PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, irradiance }
+        let below = (0..map.height()).any(|y| map.direction(0.5, (y as f32 + 0.5) / map.height() as f32).z < 0.0 && (0..map.width()).any(|x| map.texel(x, y).max_element() > 0.0));
+        PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, irradiance, below }
     }
 
     /// The same environment turned to `rotate_deg` about +Z, as if it had been placed
@@ -134,7 +138,16 @@ impl PrefilteredEnv {
                 other => other,
             })
             .collect();
-        Ok(PrefilteredEnv { map, lights, sigma0: self.sigma0, levels: self.levels.clone(), irradiance: self.irradiance.clone() })
+        Ok(PrefilteredEnv { map, lights, sigma0: self.sigma0, levels: self.levels.clone(), irradiance: self.irradiance.clone(), below: self.below })
+    }
+
+    /// Whether the map (its sources taken out) sends any light up through the sheet:
+    /// a texel whose centre lies below the horizon is lit (the rotation about +Z changes
+    /// nothing). Both renderers light a model's transmission term by the map only then
+    /// (cpu/env_shading.rs), so a map dark below the horizon costs a BSDF model nothing;
+    /// its sources below the sheet are lights, which decide for themselves.
+    pub fn lights_below(&self) -> bool {
+        self.below
     }
 
     /// Widest σ the chain holds.

@@ -418,7 +418,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         };
         sweeps.push(vary("pom_steps", "max_steps", [8u32, 16, 32, 64, 4096].iter().map(|&s| (s.to_string(), CpuRenderOptions { max_steps: s, ..opts.clone() }, None)).collect())?);
         sweeps.push(vary("level_bias", "bias", [-1.0f32, 0.0, 1.0, 2.0, 3.0].iter().map(|&b| (format!("{b:+}"), CpuRenderOptions { level: LevelChoice::Auto { bias: b }, ..opts.clone() }, None)).collect())?);
-        let base = HybridPass::variant(&g, std::slice::from_ref(&light), HybridPass::light_behind_tile(&g, std::slice::from_ref(&light)), model.meta.fitted_with_shadowing, &opts);
+        let base = HybridPass::variant(&g, std::slice::from_ref(&light), HybridPass::light_behind_tile(&g, std::slice::from_ref(&light), &opts), model.meta.fitted_with_shadowing, &opts);
         sweeps.push(vary(
             "skips",
             "variant",
