@@ -40,7 +40,8 @@ vec2 env_uv(vec3 w_shading) {
     return vec2(min(u, ONE_MINUS), min(v, ONE_MINUS));
 }
 
-// EnvLevel::bilinear of level k (8: the irradiance map): wraps in u, clamps in v.
+// EnvLevel::bilinear of slot k of env_levels (GpuEnv: 0-7 the chain above the horizon,
+// 8-15 below, 16 and 17 the irradiance maps): wraps in u, clamps in v.
 vec3 env_bilinear(uint k, vec2 uv) {
     uvec4 lv = params.env_levels[k];
     int w = int(lv.y);
@@ -66,20 +67,31 @@ vec3 env_bilinear(uint k, vec2 uv) {
     return mix(top, bottom, fy);
 }
 
-// PrefilteredEnv::blurred: the mean radiance under a normalized SG of width sigma, from
-// the level nearest sigma in log2.
-vec3 env_blurred(vec3 w, float sigma) {
-    vec2 uv = env_uv(w);
+// PrefilteredEnv::level_of: the level nearest sigma in log2.
+uint env_level_of(float sigma) {
     float sigma0 = params.env_frame.z;
     uint count = params.env_info.x;
     float l = sigma > sigma0 ? log2(sigma / sigma0) : 0.0;
-    l = min(l, float(count - 1u));
-    return env_bilinear(uint(l + 0.5), uv);
+    return uint(min(l, float(count - 1u)) + 0.5);
 }
 
-// PrefilteredEnv::irradiance.
+// PrefilteredEnv::blurred: the mean radiance under a normalized SG of width sigma of the
+// map's half on w's side of its horizon (in the world: on a mesh, away from the map's
+// horizon, the same as the whole map's).
+vec3 env_blurred(vec3 w, float sigma) {
+    vec2 uv = env_uv(w);
+    return env_bilinear(((g_env_to_world * w).z < 0.0 ? 8u : 0u) + env_level_of(sigma), uv);
+}
+
+// PrefilteredEnv::irradiance: the light of the half above the horizon, what reaches a
+// tile's reflection; on a mesh (env_info.w) the whole sphere's.
 vec3 env_irradiance(vec3 n) {
-    return env_bilinear(8u, env_uv(n));
+    return env_bilinear(params.env_info.w != 0u ? 17u : 16u, env_uv(n));
+}
+
+// PrefilteredEnv::irradiance_full.
+vec3 env_irradiance_full(vec3 n) {
+    return env_bilinear(17u, env_uv(n));
 }
 
 #endif // ENV_LOOKUP_GLSL

@@ -233,7 +233,7 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
     vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
     vec3 resp = vec3(0.0);
     if (max(max(kd.x, kd.y), kd.z) > 0.0) {
-        resp = kd * env_irradiance(vec3(0.0, 0.0, -1.0)) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z));
+        resp = kd * env_irradiance_full(vec3(0.0, 0.0, -1.0)) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z));
     }
     return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, nodes, lookups);
 }

@@ -45,10 +45,13 @@ struct GpuRenderParams {
     float edit_rotation;  // radians
     uvec2 mask_dims;      // 0 x 0: no mask
     GpuLight lights[GPU_MAX_LIGHTS];
-    uvec4 env_info;       // x: SG levels (0: no environment), y: 1 = rays that miss see it,
-                          // z: 1 = it lights transmission terms from below
+    uvec4 env_info;       // x: SG levels per chain (0: no environment), y: 1 = rays that
+                          // miss see it, z: 1 = it lights transmission terms from below,
+                          // w: 1 = a mesh pass (diffuse reads the whole sphere's irradiance)
     vec4 env_frame;       // cos, sin of the map's rotation; sigma_0 of level 0
-    uvec4 env_levels[9];  // offset into binding 11, width, height; [8]: the irradiance map
+    uvec4 env_levels[18]; // offset into binding 11, width, height: [0, 8) the chain above
+                          // the horizon, [8, 16) below it, [16] the irradiance of the half
+                          // above, [17] of the whole sphere (GpuEnv)
 };
 
 layout(std430, set = 0, binding = 7) readonly buffer ParamBlock { GpuRenderParams params; };

@@ -4,7 +4,11 @@ library alone: an uncompressed float32 scanline EXR, 256x128, equirectangular. A
 gradient, a colour ramp in azimuth (fading at the poles) and a bright blob (sigma 12 deg)
 toward Mitsuba-local (theta 55, phi 70): no symmetry that would hide a wrong orientation.
 
-    python3 tools/scripts/test_envmap.py OUT.exr
+    python3 tools/scripts/test_envmap.py OUT.exr [--upside-down]
+
+--upside-down mirrors it through the horizon (the blob 55 deg from the nadir, the bright
+side of the gradient below): light from under the sheet, for the transmission term
+(runtime/ENV_MEASUREMENTS.md, "Light through the cloth").
 """
 import math
 import struct
@@ -51,6 +55,7 @@ def write_exr(path, width, height, f):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
+    if len(sys.argv) not in (2, 3) or (len(sys.argv) == 3 and sys.argv[2] != "--upside-down"):
         sys.exit(__doc__)
-    write_exr(sys.argv[1], 256, 128, pixel)
+    flip = len(sys.argv) == 3
+    write_exr(sys.argv[1], 256, 128, (lambda x, y, w, h: pixel(x, h - 1 - y, w, h)) if flip else pixel)

@@ -396,6 +396,7 @@ impl HybridPass {
             Some(e) => {
                 let mut g = GpuEnv::new(&e.prefiltered, e.background).ok_or(GpuRenderError::EnvUnsupported)?;
                 g.info[2] |= mesh as u32;
+                g.info[3] = mesh as u32;
                 Some(g)
             }
             None => None,

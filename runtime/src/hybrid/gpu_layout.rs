@@ -390,7 +390,7 @@ impl GpuLight {
 
 /// One frame's camera, lights, options and edits (binding 7; the edit mask is binding 8,
 /// one f32 per mask pixel as `cpu::EditMask` stores them; the environment's texels are
-/// binding 11). 592 bytes.
+/// binding 11). 736 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuRenderParams {
@@ -413,24 +413,30 @@ pub struct GpuRenderParams {
     pub edit_rotation: f32,
     pub mask_dims: [u32; 2],
     pub lights: [GpuLight; GPU_MAX_LIGHTS],
-    /// Environment light (env_shading.glsl; [`GpuEnv`]): x the SG levels (0: none),
-    /// y 1 where rays that miss see the map, z 1 where the map lights transmission terms
-    /// from below (`PrefilteredEnv::lights_below`; on a mesh always).
+    /// Environment light (env_shading.glsl; [`GpuEnv`]): x the SG levels per chain (0:
+    /// none), y 1 where rays that miss see the map, z 1 where the map lights transmission
+    /// terms from below (`PrefilteredEnv::lights_below`; on a mesh always), w 1 on a mesh
+    /// (diffuse terms read the whole sphere's irradiance).
     pub env_info: [u32; 4],
     /// cos and sin of the map's rotation, σ_0 of level 0.
     pub env_frame: [f32; 4],
-    /// Per level (offset in texels of binding 11, width, height, 0); [8] the irradiance map.
+    /// Per level (offset in texels of binding 11, width, height, 0): [0, 8) the chain
+    /// above the horizon, [8, 16) the chain below it, [16] the irradiance of the half
+    /// above, [17] the whole sphere's (`PrefilteredEnv`, "Two halves").
     pub env_levels: [[u32; 4]; GPU_ENV_SLOTS],
 }
 
-/// Slots of `env_levels`: 8 SG levels, then the irradiance map.
-pub const GPU_ENV_SLOTS: usize = 9;
+/// Most SG levels per chain.
+pub const GPU_ENV_LEVELS: usize = 8;
+/// Slots of `env_levels`: two chains of [`GPU_ENV_LEVELS`], then the two irradiance maps.
+pub const GPU_ENV_SLOTS: usize = 2 * GPU_ENV_LEVELS + 2;
 
 const _: () = assert!(size_of::<GpuCamera>() == 80);
-const _: () = assert!(size_of::<GpuRenderParams>() == 592);
+const _: () = assert!(size_of::<GpuRenderParams>() == 736);
 
 /// A prefiltered environment as binding 11 reads it: every level's texels (rgb, w = 0)
-/// one after another, then the irradiance map; where each starts and its size.
+/// one after another (the chain above the horizon, the chain below), then the two
+/// irradiance maps; where each starts and its size.
 pub struct GpuEnv {
     pub texels: Vec<[f32; 4]>,
     pub info: [u32; 4],
@@ -439,10 +445,10 @@ pub struct GpuEnv {
 }
 
 impl GpuEnv {
-    /// None: the chain has more levels than the shader's 8 slots (the prefilter makes at
+    /// None: a chain has more levels than the shader's 8 slots (the prefilter makes at
     /// most 7).
     pub fn new(env: &crate::scene::PrefilteredEnv, background: bool) -> Option<GpuEnv> {
-        if env.levels.len() > GPU_ENV_SLOTS - 1 || env.levels.is_empty() {
+        if env.levels.len() > GPU_ENV_LEVELS || env.levels.is_empty() || env.levels_below.len() != env.levels.len() {
             return None;
         }
         let mut texels = Vec::new();
@@ -451,10 +457,12 @@ impl GpuEnv {
             levels[slot] = [texels.len() as u32, l.width, l.height, 0];
             texels.extend(l.texels.iter().map(|t| t.extend(0.0).to_array()));
         };
-        for (k, l) in env.levels.iter().enumerate() {
-            push(k, l);
+        for (k, (above, below)) in env.levels.iter().zip(&env.levels_below).enumerate() {
+            push(k, above);
+            push(GPU_ENV_LEVELS + k, below);
         }
-        push(GPU_ENV_SLOTS - 1, &env.irradiance);
+        push(2 * GPU_ENV_LEVELS, &env.irradiance);
+        push(2 * GPU_ENV_LEVELS + 1, &env.irradiance_full);
         let (sin, cos) = env.map.rotate_deg().to_radians().sin_cos();
         Some(GpuEnv { texels, info: [env.levels.len() as u32, background as u32, env.lights_below() as u32, 0], frame: [cos, sin, env.sigma0, 0.0], levels })
     }

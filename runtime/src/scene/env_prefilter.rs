@@ -14,6 +14,27 @@
 //! - the irradiance map E(n) = ∫ L(ω) max(n·ω, 0) dω (the cosine convolution of the
 //!   source map downsampled to at most 128 × 64, at 64 × 32 normals), for diffuse terms.
 //!
+//! # Two halves
+//! The tile's plane is the map's horizon, and light reaches the tile's reflection lobes
+//! only from above it and its transmission term only from below (cpu/env_shading.rs). A
+//! blur of the whole map would carry light across the horizon: a grazing lobe's lookup
+//! would read the ground, and a tilted normal's irradiance would gather light from below
+//! the sheet (measured on a map lit only below: up to 7% of a tilted texel's diffuse
+//! light and 30% of a grazing lobe's, runtime/ENV_MEASUREMENTS.md, "Light through the
+//! cloth"). So there are two chains, each the normalized blur of one half alone (the sum
+//! above over the texels on one side of the horizon, divided by the kernel's mass
+//! there: the mean radiance of that half near μ), and a lookup reads the chain of its
+//! own side. (The half's blur over the whole kernel's mass instead, the other half taken
+//! as black, was measured too and drawn 10% darker and further from the path tracer:
+//! runtime/ENV_MEASUREMENTS.md, "Light through the cloth".) Away from the horizon both
+//! chains are the whole map's blur, so the background and a mesh's fragments, whose
+//! horizon is not the map's, read them as they would the map's.
+//! The irradiance map likewise gathers the upper half alone ([`PrefilteredEnv::irradiance`],
+//! the reflection's diffuse term), beside one of the whole sphere
+//! ([`PrefilteredEnv::irradiance_full`]: the transmission's diffuse term at −ẑ, and a
+//! mesh's fragments). A constant map stays constant in both chains; on a tile the cut at
+//! the horizon is what the path tracer's light does.
+//!
 //! Each level is computed from the source box-downsampled to its resolution (texels
 //! weighted by solid angle) by a windowed convolution (±3σ) normalized by the kernel's
 //! own discrete sum, so a constant map stays exactly constant at every level.
@@ -72,8 +93,14 @@ pub struct PrefilteredEnv {
     pub lights: Vec<Light>,
     /// σ of level 0 (radians).
     pub sigma0: f32,
+    /// The chain of the half above the horizon (module docs, "Two halves").
     pub levels: Vec<EnvLevel>,
+    /// The chain of the half below it, level for level.
+    pub levels_below: Vec<EnvLevel>,
+    /// E(n) gathered from the half above the horizon.
     pub irradiance: EnvLevel,
+    /// E(n) gathered from the whole sphere.
+    pub irradiance_full: EnvLevel,
     /// Whether any texel of the chain's map (sources out) below the horizon is lit
     /// ([`PrefilteredEnv::lights_below`]).
     pub below: bool,
@@ -104,10 +131,12 @@ impl PrefilteredEnv {
         }
         let sigma0 = 2.0 * PI / base.height as f32;
         let mut levels = Vec::new();
+        let mut levels_below = Vec::new();
         let mut input = base;
         let mut sigma = sigma0;
         loop {
-            levels.push(sg_blur(&input, sigma));
+            levels.push(sg_blur(&input, sigma, Half::Above));
+            levels_below.push(sg_blur(&input, sigma, Half::Below));
             if input.height <= 4 {
                 break;
             }
@@ -118,9 +147,9 @@ impl PrefilteredEnv {
         while small.width > 2 * IRRADIANCE_WIDTH && small.height > 1 {
             small = downsample(&small);
         }
-        let irradiance = cosine_convolution(&small, IRRADIANCE_WIDTH, IRRADIANCE_WIDTH / 2);
+        let (irradiance, irradiance_full) = cosine_convolution(&small, IRRADIANCE_WIDTH, IRRADIANCE_WIDTH / 2);
         let below = (0..map.height()).any(|y| map.direction(0.5, (y as f32 + 0.5) / map.height() as f32).z < 0.0 && (0..map.width()).any(|x| map.texel(x, y).max_element() > 0.0));
-        PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, irradiance, below }
+        PrefilteredEnv { map: whole.clone(), lights, sigma0, levels, levels_below, irradiance, irradiance_full, below }
     }
 
     /// The same environment turned to `rotate_deg` about +Z, as if it had been placed
@@ -138,7 +167,7 @@ impl PrefilteredEnv {
                 other => other,
             })
             .collect();
-        Ok(PrefilteredEnv { map, lights, sigma0: self.sigma0, levels: self.levels.clone(), irradiance: self.irradiance.clone(), below: self.below })
+        Ok(PrefilteredEnv { map, lights, sigma0: self.sigma0, levels: self.levels.clone(), levels_below: self.levels_below.clone(), irradiance: self.irradiance.clone(), irradiance_full: self.irradiance_full.clone(), below: self.below })
     }
 
     /// Whether the map (its sources taken out) sends any light up through the sheet:
@@ -157,20 +186,32 @@ impl PrefilteredEnv {
 
     /// L̄_σ toward world direction `w`: the mean radiance under a normalized SG of
     /// angular width σ (radians) around w, from the level nearest σ in log2 (σ below
-    /// σ_0 reads level 0; above the chain's widest, its last level).
+    /// σ_0 reads level 0; above the chain's widest, its last level), of the map's half
+    /// on w's side of the horizon (module docs, "Two halves").
     pub fn blurred(&self, w: Vec3, sigma: f32) -> Vec3 {
         let (u, v) = self.map.uv(w);
-        let l = if sigma > self.sigma0 { (sigma / self.sigma0).log2() } else { 0.0 };
-        // The nearest level in log σ, bilinear in it: half the fetches of blending two
-        // levels, for 0.25 points of median error (env_shading.rs's test: 1.87% → 2.1%).
-        let l = l.min((self.levels.len() - 1) as f32);
-        self.levels[(l + 0.5) as usize].bilinear(u, v)
+        let k = self.level_of(sigma);
+        if w.z < 0.0 { self.levels_below[k].bilinear(u, v) } else { self.levels[k].bilinear(u, v) }
     }
 
-    /// E(n) = ∫ L(ω) max(n·ω, 0) dω for a world normal n.
+    /// The level nearest σ in log σ, read bilinearly: half the fetches of blending two
+    /// levels, for 0.25 points of median error (env_shading.rs's test: 1.87% → 2.1%).
+    fn level_of(&self, sigma: f32) -> usize {
+        let l = if sigma > self.sigma0 { (sigma / self.sigma0).log2() } else { 0.0 };
+        (l.min((self.levels.len() - 1) as f32) + 0.5) as usize
+    }
+
+    /// E(n) = ∫_{ω·ẑ > 0} L(ω) max(n·ω, 0) dω for a world normal n: the light of the
+    /// half above the horizon, what reaches a tile's reflection.
     pub fn irradiance(&self, n: Vec3) -> Vec3 {
         let (u, v) = self.map.uv(n);
         self.irradiance.bilinear(u, v)
+    }
+
+    /// E(n) = ∫ L(ω) max(n·ω, 0) dω over the whole sphere.
+    pub fn irradiance_full(&self, n: Vec3) -> Vec3 {
+        let (u, v) = self.map.uv(n);
+        self.irradiance_full.bilinear(u, v)
     }
 }
 
@@ -202,8 +243,28 @@ fn downsample(l: &EnvLevel) -> EnvLevel {
     EnvLevel { width: nw as u32, height: nh as u32, texels }
 }
 
-/// The normalized SG blur of `l` with width σ, at `l`'s resolution.
-fn sg_blur(l: &EnvLevel, sigma: f32) -> EnvLevel {
+/// A side of the map's horizon (module docs, "Two halves"); a texel whose centre lies on
+/// the horizon belongs to both.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Half {
+    Above,
+    Below,
+}
+
+impl Half {
+    /// Whether map-frame direction `d` (Y up) is on this side.
+    fn holds(self, d: Vec3) -> bool {
+        match self {
+            Half::Above => d.y >= 0.0,
+            Half::Below => d.y <= 0.0,
+        }
+    }
+}
+
+/// The normalized SG blur of `half` of `l` with width σ, at `l`'s resolution: each texel
+/// the kernel-weighted mean of the texels of that half (0 where the kernel's ±3σ holds
+/// none of them, texels no lookup of that side reads).
+fn sg_blur(l: &EnvLevel, sigma: f32, half: Half) -> EnvLevel {
     let (w, h) = (l.width as usize, l.height as usize);
     let lambda = 1.0 / (sigma * sigma);
     let dirs: Vec<Vec3> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| l.centre(x, y)).collect();
@@ -231,12 +292,15 @@ fn sg_blur(l: &EnvLevel, sigma: f32) -> EnvLevel {
                         let cols: Box<dyn Iterator<Item = usize>> = if 2 * span + 1 >= w as i64 { Box::new(0..w) } else { Box::new((-span..=span).map(|d| (x as i64 + d).rem_euclid(w as i64) as usize)) };
                         for sx in cols {
                             let d = dirs[sy * w + sx];
+                            if !half.holds(d) {
+                                continue;
+                            }
                             let k = (lambda * (mu.dot(d) - 1.0)).exp() * omegas[sy];
                             sum += l.at(sx, sy) * k;
                             wsum += k;
                         }
                     }
-                    if wsum > 0.0 { sum / wsum } else { l.at(x, y) }
+                    if wsum > 0.0 { sum / wsum } else { Vec3::ZERO }
                 })
                 .collect()
         })
@@ -245,9 +309,10 @@ fn sg_blur(l: &EnvLevel, sigma: f32) -> EnvLevel {
 }
 
 /// E(n) = ∫ L max(n·ω, 0) dω of the piecewise-constant map `l`, at `w` × `h` normals:
-/// each texel split into cells of equal solid angle (2 × 2, more for small maps) of equal solid angle, so the cosine is integrated
-/// over the texel rather than taken at its centre.
-fn cosine_convolution(l: &EnvLevel, w: u32, h: u32) -> EnvLevel {
+/// each texel split into cells of equal solid angle (2 × 2, more for small maps), so the
+/// cosine is integrated over the texel rather than taken at its centre. Returns the
+/// integral over the cells above the horizon, and over all of them.
+fn cosine_convolution(l: &EnvLevel, w: u32, h: u32) -> (EnvLevel, EnvLevel) {
     let (lw, lh) = (l.width as usize, l.height as usize);
     // At least 256 cells around the equator whatever the map's size.
     let sub = (256 / lw).clamp(2, 32);
@@ -270,14 +335,19 @@ fn cosine_convolution(l: &EnvLevel, w: u32, h: u32) -> EnvLevel {
         }
     }
     let out = EnvLevel { width: w, height: h, texels: Vec::new() };
-    let texels = (0..(w * h) as usize)
+    let (above, full): (Vec<Vec3>, Vec<Vec3>) = (0..(w * h) as usize)
         .into_par_iter()
         .map(|i| {
             let n = out.centre(i % w as usize, i / w as usize);
-            src.iter().map(|(d, lw)| *lw * n.dot(*d).max(0.0)).sum()
+            let (mut above, mut below) = (Vec3::ZERO, Vec3::ZERO);
+            for (d, lw) in &src {
+                let e = *lw * n.dot(*d).max(0.0);
+                if d.y > 0.0 { above += e } else { below += e }
+            }
+            (above, above + below)
         })
-        .collect();
-    EnvLevel { texels, ..out }
+        .unzip();
+    (EnvLevel { texels: above, ..out.clone() }, EnvLevel { texels: full, ..out })
 }
 
 #[cfg(test)]
@@ -289,15 +359,58 @@ mod tests {
     #[test]
     fn a_constant_map_stays_constant_and_integrates_exactly() {
         let env = PrefilteredEnv::new(&EnvMap::constant(Vec3::splat(0.7)).unwrap());
-        for (k, l) in env.levels.iter().enumerate() {
-            assert!(l.texels.iter().all(|t| (*t - Vec3::splat(0.7)).abs().max_element() < 1e-5), "level {k}");
+        for (k, (a, b)) in env.levels.iter().zip(&env.levels_below).enumerate() {
+            for (y, half, l) in [(0, Half::Above, a), (a.height as usize - 1, Half::Below, b)] {
+                assert!(half.holds(l.centre(0, y)));
+                assert!((0..l.width as usize).all(|x| (l.at(x, y) - Vec3::splat(0.7)).abs().max_element() < 1e-5), "level {k} {half:?}");
+            }
         }
-        for n in [Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize()] {
+        for n in [Vec3::Z, Vec3::X, -Vec3::Z, Vec3::new(0.3, -0.5, 0.8).normalize(), Vec3::new(0.3, -0.5, -0.1).normalize()] {
             // ∫ 0.7 max(n·ω, 0) dω = 0.7 π, within the discretization of the cosine.
-            let e = env.irradiance(n);
+            let e = env.irradiance_full(n);
             assert!((e - Vec3::splat(0.7 * PI)).abs().max_element() < 0.01 * 0.7 * PI, "{e}");
-            assert!((env.blurred(n, 0.3) - Vec3::splat(0.7)).abs().max_element() < 1e-5);
+            for sigma in [0.0, 0.3, 3.0] {
+                assert!((env.blurred(n, sigma) - Vec3::splat(0.7)).abs().max_element() < 1e-5, "{n} σ {sigma}");
+            }
         }
+        // The upper half alone: π at the zenith, π/2 at the horizon, 0 at the nadir.
+        for (n, share) in [(Vec3::Z, 1.0), (Vec3::X, 0.5), (-Vec3::Z, 0.0)] {
+            let e = env.irradiance(n);
+            assert!((e - Vec3::splat(0.7 * PI * share)).abs().max_element() < 0.012 * 0.7 * PI, "{n}: {e}");
+        }
+    }
+
+    #[test]
+    fn light_does_not_cross_the_horizon() {
+        // A map lit only below (the sky upside down): the chain above reads nothing
+        // however wide the blur, nor does the irradiance of upward normals, tilted or not;
+        // the chain below and the whole sphere's irradiance hold it all.
+        let sky = Sky::default().env_map(EnvMapOptions::default()).unwrap();
+        let (w, h) = (sky.width(), sky.height());
+        let lit_below = |x: u32, y: u32| if sky.direction(0.5, (y as f32 + 0.5) / h as f32).z < 0.0 { sky.texel(x, h - 1 - y) } else { Vec3::ZERO };
+        let map = sky.with_texels((0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| lit_below(x, y)).collect()).unwrap();
+        let env = PrefilteredEnv::new(&map);
+        assert!(env.lights_below());
+        let mut rng = crate::brdf::twin::SplitMix64(5);
+        for _ in 0..300 {
+            let d = rng.unit_vector();
+            let up = Vec3::new(d.x, d.y, d.z.abs().max(1e-3)).normalize();
+            for sigma in [0.0, 0.2, 1.0, 3.0] {
+                assert_eq!(env.blurred(up, sigma), Vec3::ZERO, "{up} σ {sigma}");
+                assert!(env.blurred(-up, sigma).max_element() > 0.0, "{} σ {sigma}", -up);
+            }
+            if up.z > 0.2 {
+                assert!(env.irradiance(up).max_element() < 1e-6, "{up}: {}", env.irradiance(up));
+            }
+        }
+        assert!(env.irradiance_full(-Vec3::Z).max_element() > 0.0 && env.irradiance(Vec3::X).max_element() < 1e-6);
+        // And the sky the right way up keeps its ground below: a map black below sends
+        // nothing there.
+        let dark_below = sky.with_texels((0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| if sky.direction(0.5, (y as f32 + 0.5) / h as f32).z < 0.0 { Vec3::ZERO } else { sky.texel(x, y) }).collect()).unwrap();
+        let up_only = PrefilteredEnv::new(&dark_below);
+        assert!(!up_only.lights_below());
+        assert_eq!(up_only.blurred(-Vec3::Z, 2.0), Vec3::ZERO);
+        assert!(up_only.blurred(Vec3::X, 2.0).max_element() > 0.0);
     }
 
     #[test]
@@ -354,6 +467,7 @@ mod tests {
         for n in [sun, Vec3::Z, Vec3::new(1.0, 0.0, 0.2).normalize()] {
             let expect = sky.sun_irradiance.x * n.dot(sun).max(0.0);
             assert!((env.irradiance(n).x - expect).abs() < 0.03 * sky.sun_irradiance.x, "{} vs {expect}", env.irradiance(n).x);
+            assert!((env.irradiance_full(n).x - expect).abs() < 0.03 * sky.sun_irradiance.x, "{} vs {expect}", env.irradiance_full(n).x);
         }
     }
 
@@ -364,6 +478,7 @@ mod tests {
         assert_eq!((env.levels[0].width, env.levels[0].height), (512, 256));
         assert_eq!(env.levels.last().unwrap().height, 4);
         assert!((env.sigma0 - 2.0 * PI / 256.0).abs() < 1e-6);
-        assert!(env.levels.iter().all(|l| l.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0)));
+        assert_eq!(env.levels.len(), env.levels_below.len());
+        assert!(env.levels.iter().chain(&env.levels_below).all(|l| l.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0)));
     }
 }
