@@ -90,7 +90,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
     if let Some(ms) = back_to_back {
         println!("{repeat} frames back to back: {ms:.3} ms per frame");
     }
-    let variant = format!("variant: flyaways {}, shadows {}, {} light(s){}{}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" }, if v.transmission { ", transmission (a light behind the cloth)" } else { "" });
+    let variant = format!("variant: flyaways {}, shadows {}, {} light(s){}{}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" }, if v.transmission { ", transmission (light from behind the cloth: a light, or the map below the sheet)" } else { "" });
     match &mesh {
         Some(m) => println!("{variant}; on a mesh of {} triangles, {}x{} tiles per UV unit", m.indices.len() / 3, uv_scale.x, uv_scale.y),
         None => {

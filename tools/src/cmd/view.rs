@@ -331,7 +331,7 @@ pub fn run(args: ViewArgs) -> Result<()> {
     let f = &viewer.frame_loop;
     println!("{} frames, last GPU frame time {:.3} ms on {}", f.frames, f.gpu_ms, f.device().info().name);
     if let Some(v) = f.variant {
-        println!("variant: flyaways {}, shadows {}, {} light(s){}{}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" }, if v.transmission { ", transmission (a light behind the cloth)" } else { "" });
+        println!("variant: flyaways {}, shadows {}, {} light(s){}{}", if v.flyaways { "marched" } else { "skipped" }, if v.shadows { "on" } else { "off" }, v.lights, if v.env { ", environment map" } else { "" }, if v.transmission { ", transmission (light from behind the cloth: a light, or the map below the sheet)" } else { "" });
     }
     let device = f.device().clone();
     drop(viewer); // destruction can report validation errors too
