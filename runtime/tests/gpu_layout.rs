@@ -92,5 +92,5 @@ fn shader_structs_have_the_rust_layout() {
     assert_eq!(end("GpuLevel") + 4, size_of::<GpuLevel>() as u32);
     assert_eq!(end("GpuQuadLevel") + 4, size_of::<GpuQuadLevel>() as u32);
     assert_eq!(end("GpuModelHeader") as usize + 18 * size_of::<GpuQuadLevel>(), size_of::<GpuModelHeader>());
-    assert_eq!(end("GpuRenderParams") as usize + 9 * 16, size_of::<GpuRenderParams>());
+    assert_eq!(end("GpuRenderParams") as usize + fabric_runtime::hybrid::gpu_layout::GPU_ENV_SLOTS * 16, size_of::<GpuRenderParams>());
 }

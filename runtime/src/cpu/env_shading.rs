@@ -663,5 +663,11 @@ mod tests {
                 eprintln!("nodes {nodes:2} lookups {lookups}: median {:.1}%, p90 {:.1}%, max {:.1}%", 100.0 * m, 100.0 * p, 100.0 * x);
             }
         }
+        // The transmission term under the sky upside down.
+        let (map, env) = sky_below();
+        for (nodes, lookups) in [(16, 4), (12, 3), (8, 2), (8, 1), (6, 1), (4, 1)] {
+            let (m, p, x) = median_p90_max(&through_errors(&map, &env, EnvBudget { nodes, lookups }));
+            eprintln!("through the cloth, nodes {nodes:2} lookups {lookups}: median {:.1}%, p90 {:.1}%, max {:.1}%", 100.0 * m, 100.0 * p, 100.0 * x);
+        }
     }
 }
