@@ -615,9 +615,9 @@ fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
     let far = Camera::orbit_orthographic(50.0, 30.0, Vec3::new(0.5, 0.5, 0.05), 3.0, 24.0, 24, 20);
     let edits = fabric_runtime::cpu::Edits { tint: Vec3::new(1.0, 0.5, 0.25), roughness_scale: 1.5, tangent_rotation: 0.7, mask: None };
     for case in [
-        Case { name: "map below, near", camera: near.clone(), options: opts.clone() },
-        Case { name: "map below, far", camera: far.clone(), options: opts.clone() },
-        Case { name: "map below, edited", camera: near.clone(), options: CpuRenderOptions { edits: edits.clone(), ..opts.clone() } },
+        Case { name: "map below, near", camera: near, options: opts.clone() },
+        Case { name: "map below, far", camera: far, options: opts.clone() },
+        Case { name: "map below, edited", camera: near, options: CpuRenderOptions { edits: edits.clone(), ..opts.clone() } },
     ] {
         let a = compare(&pass, &model, &[], &case);
         println!("{}: relative RMSE {:.2e}, {:.4} of pixels differ", case.name, a.rmse, a.differing);
