@@ -8,8 +8,11 @@
 //! 10% of its peak; each gives up what exceeds the background (per channel), so the
 //! remainder is continuous across the region's edge. The light's irradiance is the
 //! sum of L − background over the region's solid angle, its direction the
-//! power-weighted mean direction. A source is kept only if it carries at least
-//! `min_fraction` of the map's power. The map with the sources removed plus the lights
+//! power-weighted mean direction. Where the ring holds no texel centre (a map of a few
+//! texels) there is no background to tell a compact source from, and no source is
+//! taken: a 2×1 constant map, whose two texels were once taken out as lights on the
+//! horizon, drew black. A source is kept only if it carries at least `min_fraction` of
+//! the map's power. The map with the sources removed plus the lights
 //! integrate to the original map exactly (per channel, ∫ L dΩ), which the test checks.
 
 use glam::Vec3;
@@ -61,7 +64,10 @@ pub fn extract_lights(map: &EnvMap, options: ExtractOptions) -> Result<(Vec<Ligh
                 ring_omega += omega[i / w];
             }
         }
-        let background = if ring_omega > 0.0 { ring / ring_omega } else { Vec3::ZERO };
+        if !(ring_omega > 0.0) {
+            break;
+        }
+        let background = ring / ring_omega;
         if !(peak_y > options.contrast * luminance(background)) || !(peak_y > 0.0) {
             break;
         }
@@ -113,5 +119,20 @@ mod tests {
         assert!(extract_lights(&map, ExtractOptions::default()).unwrap().0.is_empty());
         assert!(extract_lights(&EnvMap::constant(Vec3::ONE).unwrap(), ExtractOptions::default()).unwrap().0.is_empty());
         assert!(extract_lights(&EnvMap::constant(Vec3::ZERO).unwrap(), ExtractOptions::default()).unwrap().0.is_empty());
+    }
+
+    #[test]
+    fn maps_too_coarse_to_hold_a_compact_source_give_none() {
+        // Texels wider than the ring: no background to compare with, so no source — even
+        // where one texel is far brighter than the rest.
+        for (w, h) in [(2u32, 1u32), (2, 2), (4, 2)] {
+            let img = crate::image::Image::from_fn(w, h, |x, y| if (x, y) == (0, 0) { Vec3::splat(1e3) } else { Vec3::ONE });
+            let map = EnvMap::from_image(&img, EnvMapOptions::default(), std::path::Path::new("coarse")).unwrap();
+            assert!(extract_lights(&map, ExtractOptions::default()).unwrap().0.is_empty(), "{w}x{h}");
+        }
+        // Fine enough, the same bright texel is a source.
+        let img = crate::image::Image::from_fn(256, 128, |x, y| if (x, y) == (40, 30) { Vec3::splat(1e4) } else { Vec3::ONE });
+        let map = EnvMap::from_image(&img, EnvMapOptions::default(), std::path::Path::new("fine")).unwrap();
+        assert_eq!(extract_lights(&map, ExtractOptions::default()).unwrap().0.len(), 1);
     }
 }

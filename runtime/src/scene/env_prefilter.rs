@@ -252,11 +252,13 @@ enum Half {
 }
 
 impl Half {
-    /// Whether map-frame direction `d` (Y up) is on this side.
+    /// Whether map-frame direction `d` (Y up) is on this side (within rounding of the
+    /// horizon: an odd-height map's middle row, whose centre is cos(π/2) ≈ −4e-8, is on
+    /// both).
     fn holds(self, d: Vec3) -> bool {
         match self {
-            Half::Above => d.y >= 0.0,
-            Half::Below => d.y <= 0.0,
+            Half::Above => d.y >= -1e-6,
+            Half::Below => d.y <= 1e-6,
         }
     }
 }
@@ -372,6 +374,12 @@ mod tests {
             for sigma in [0.0, 0.3, 3.0] {
                 assert!((env.blurred(n, sigma) - Vec3::splat(0.7)).abs().max_element() < 1e-5, "{n} σ {sigma}");
             }
+        }
+        // A one-row map (2×1): its row lies on the horizon and serves both halves.
+        let img = Image::from_fn(2, 1, |_, _| Vec3::splat(0.7));
+        let row = PrefilteredEnv::new(&EnvMap::from_image(&img, EnvMapOptions::default(), std::path::Path::new("row")).unwrap());
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, -0.1).normalize()] {
+            assert!((row.blurred(n, 0.5) - Vec3::splat(0.7)).abs().max_element() < 1e-5, "2×1: {n} {}", row.blurred(n, 0.5));
         }
         // The upper half alone: π at the zenith, π/2 at the horizon, 0 at the nadir.
         for (n, share) in [(Vec3::Z, 1.0), (Vec3::X, 0.5), (-Vec3::Z, 0.0)] {
