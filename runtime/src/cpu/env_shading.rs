@@ -354,8 +354,21 @@ pub fn transmission_env_response(t: &ClothTransmission, f: &ClothFrame, wo: Vec3
 }
 
 /// [`transmission_env_response`] by brute force over the map's lower hemisphere (the
-/// tests' ground truth), on the grid of [`texel_env_response_quadrature`].
+/// tests' ground truth), on the grid of [`env_quadrature`].
 pub fn transmission_env_response_quadrature(t: &ClothTransmission, f: &ClothFrame, wo: Vec3, map: &EnvMap, n: usize) -> Vec3 {
+    env_quadrature(map, n, |wi| if wi.z < 0.0 { crate::brdf::cloth_transmission_response(t, f, wi, wo) } else { Vec3::ZERO })
+}
+
+/// The same integral by brute force (the test's and the bench's ground truth):
+/// ∫ L(ω_i) · response(ω_i, ω_o) · V_f dω_i over ω_i.z > 0, on the grid of
+/// [`env_quadrature`].
+pub fn texel_env_response_quadrature(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, diffuse: DiffuseLaw, map: &EnvMap, n: usize) -> Vec3 {
+    env_quadrature(map, n, |wi| if wi.z > 0.0 { super::shading::texel_response(b, wi, wo, reading, diffuse) * if volumetric { volume_factor(wi, wo) } else { 1.0 } } else { Vec3::ZERO })
+}
+
+/// ∫ L(ω) · g(ω) dω over the sphere on an `n` × 2n grid of equal solid angle in the
+/// map's own frame, the map looked up texel by texel (g is skipped where L is 0).
+pub fn env_quadrature(map: &EnvMap, n: usize, g: impl Fn(Vec3) -> Vec3) -> Vec3 {
     let mut sum = glam::DVec3::ZERO;
     let cell = 4.0 * PI as f64 / (2 * n * n) as f64;
     for j in 0..n {
@@ -363,39 +376,10 @@ pub fn transmission_env_response_quadrature(t: &ClothTransmission, f: &ClothFram
         let v = cos_theta.clamp(-1.0, 1.0).acos() / PI;
         for i in 0..2 * n {
             let wi = map.direction((i as f32 + 0.5) / (2 * n) as f32, v);
-            if !(wi.z < 0.0) {
-                continue;
-            }
             let l = map.eval(wi);
             if l.max_element() > 0.0 {
-                sum += (l * crate::brdf::cloth_transmission_response(t, f, wi, wo)).as_dvec3();
+                sum += (l * g(wi)).as_dvec3();
             }
-        }
-    }
-    (sum * cell).as_vec3()
-}
-
-/// The same integral by brute force (the test's and the bench's ground truth):
-/// ∫ L(ω_i) · response(ω_i, ω_o) · V_f dω_i over ω_i.z > 0, on an `n` × 2n grid of
-/// equal solid angle in the map's own frame, the map looked up texel by texel.
-pub fn texel_env_response_quadrature(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumetric: bool, diffuse: DiffuseLaw, map: &EnvMap, n: usize) -> Vec3 {
-    let mut sum = glam::DVec3::ZERO;
-    let cell = 4.0 * PI as f64 / (2 * n * n) as f64;
-    for j in 0..n {
-        let cos_theta = 1.0 - 2.0 * (j as f32 + 0.5) / n as f32;
-        let v = cos_theta.clamp(-1.0, 1.0).acos() / PI;
-        for i in 0..2 * n {
-            let u = (i as f32 + 0.5) / (2 * n) as f32;
-            let wi = map.direction(u, v);
-            if !(wi.z > 0.0) {
-                continue;
-            }
-            let l = map.eval(wi);
-            if l.max_element() <= 0.0 {
-                continue;
-            }
-            let f = super::shading::texel_response(b, wi, wo, reading, diffuse) * if volumetric { volume_factor(wi, wo) } else { 1.0 };
-            sum += (l * f).as_dvec3();
         }
     }
     (sum * cell).as_vec3()
