@@ -315,11 +315,28 @@ float cloth_diffuse_env_factor(uint law, vec3 wo) {
 // zeros: nothing comes through.
 #define CLOTH_TAU_MAX 16.0
 #define CLOTH_TRANSMISSION_MU_MIN 0.05
+#define CLOTH_OPENNESS_Q_MAX 64.0
+// A texel's openness (format 1.10): O(mu_o) = o exp(-q (1/mu_o - 1)), the fraction of
+// straight rays that cross it untouched (cloth_openness).
+struct ClothOpenness {
+    float o;
+    float q;
+};
 struct ClothTransmission {
     vec3 kd;
     ClothLobe lobe;
     float tau;
+    ClothOpenness gap;
 };
+
+// o exp(-q (1/mu_o - 1)), mu_o = |cos| to the tile normal clamped to [0.05, 1], o to
+// [0, 1], q to [0, 64]: the map behind the sheet seen through the gaps, per unit radiance.
+float cloth_openness(ClothOpenness g, float mu_o) {
+    float o = min(max(g.o, 0.0), 1.0);
+    float q = min(max(g.q, 0.0), CLOTH_OPENNESS_Q_MAX);
+    float mo = min(max(abs(mu_o), CLOTH_TRANSMISSION_MU_MIN), 1.0);
+    return o * exp(-q * (1.0 / mo - 1.0));
+}
 
 // exp(-tau (1/mu_i + 1/mu_o - 2)), mu = |cos| to the tile normal clamped to [0.05, 1],
 // tau to [0, 16]: 1 at normal incidence and view. Symmetric.

@@ -22,7 +22,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothOpenness, ClothParams, ClothTransmission, DiffuseLaw};
 use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
@@ -37,6 +37,7 @@ use crate::fit::features::texel_features;
 use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
+use crate::fit::openness::{OpennessReport, fit_openness, measure_openness, openness_report, openness_views};
 use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
@@ -322,7 +323,9 @@ pub struct TransmissionReport {
     pub capped_texels: usize,
     /// Clusters whose fit fell back (no samples, bad data).
     pub problems: Vec<ClusterProblem>,
-    /// Seconds of the backlit renderings and of the fit.
+    /// The openness (the gaps between yarns, `fit::openness`), None where not measured.
+    pub openness: Option<OpennessReport>,
+    /// Seconds of the backlit renderings and of the fit (the openness included).
     pub render_seconds: f64,
     pub fit_seconds: f64,
 }
@@ -367,6 +370,11 @@ impl BakeOptions {
         // η = 1 makes the Fresnel factor, and with it every lobe, zero: nothing to fit.
         if !(self.fit.eta >= ETA_MIN_FIT && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
             return bad("eta", self.fit.eta.to_string(), "must be in [1.01, 4] (at η = 1 the Fresnel factor, and every lobe with it, is zero)");
+        }
+        if let Some(t) = &self.transmission {
+            if t.openness_rays > 256 {
+                return bad("openness_rays", t.openness_rays.to_string(), "rays per texel per view must be in 0..=256 (0: no openness)");
+            }
         }
         Ok(())
     }
@@ -880,13 +888,27 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
     let predictions = predict_all(&|j| capped[j]);
     let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
     bar.finish();
+    // The gaps: what a directional light behind is never seen through (no training pair
+    // shows it), measured from the volume along the probe's rays.
+    let (capped, openness) = if to.openness_rays > 0 {
+        let t_gap = Instant::now();
+        let views = openness_views();
+        let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
+        let means = measure_openness(skeleton, measure, &views, to.openness_rays, mix64(seed ^ 0x6761_7073));
+        let gaps: Vec<ClothOpenness> = means.par_iter().map(|m| fit_openness(m)).collect();
+        bar.finish();
+        let report = openness_report(&means, &gaps, &views, to.openness_rays, t_gap.elapsed().as_secs_f64());
+        (capped.into_iter().zip(gaps).map(|(t, gap)| ClothTransmission { gap, ..t }).collect(), Some(report))
+    } else {
+        (capped, None)
+    };
     let problems = fits
         .iter()
         .enumerate()
         .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
         .collect();
     let pair_errors = predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect();
-    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
+    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, openness, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
     Ok((capped, report))
 }
 

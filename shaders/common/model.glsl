@@ -135,6 +135,8 @@ ClothTransmission packed_transmission(uint index) {
     t.lobe.beta = f16_value(b.y);
     t.lobe.gamma = f16_value(b.y >> 16);
     t.tau = f16_value(c.x);
+    t.gap.o = f16_value(c.x >> 16);
+    t.gap.q = f16_value(c.y);
     return t;
 }
 

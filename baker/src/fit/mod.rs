@@ -14,6 +14,7 @@ pub mod flyaways;
 pub mod frames;
 pub mod kmeans;
 pub mod nnls;
+pub mod openness;
 pub mod samples;
 pub mod simplex;
 pub mod transmission;

@@ -82,11 +82,14 @@ pub struct TransmissionFitOptions {
     pub search_samples: usize,
     /// Samples per texel of the backlit training renderings (0: the bake's own spp).
     pub spp: u32,
+    /// Rays per texel per view that measure the openness (`fit::openness`; 0: none, the
+    /// texels are closed).
+    pub openness_rays: u32,
 }
 
 impl Default for TransmissionFitOptions {
     fn default() -> Self {
-        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0 }
+        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0, openness_rays: 8 }
     }
 }
 
@@ -202,7 +205,7 @@ pub fn fit_transmission(samples: &[TransTarget], o: &TransmissionFitOptions) -> 
         return fallback("linear solve failed".into());
     };
     let v = |j: usize| Vec3::new(k[0][j] as f32, k[1][j] as f32, k[2][j] as f32).clamp(Vec3::ZERO, Vec3::splat(K_MAX));
-    let transmission = ClothTransmission { kd: v(0), lobe: ClothLobe { k: v(1), beta, gamma }, tau };
+    let transmission = ClothTransmission { kd: v(0), lobe: ClothLobe { k: v(1), beta, gamma }, tau, gap: Default::default() };
     TransmissionFit { transmission, residual2, target2, samples: samples.len(), problem: None }
 }
 
@@ -286,7 +289,7 @@ pub fn cap_energy(t: &ClothTransmission, frame: &ClothFrame) -> ClothTransmissio
         return *t;
     }
     let s = ALBEDO_MAX / worst;
-    ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau }
+    ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau, gap: t.gap }
 }
 
 #[cfg(test)]
@@ -295,7 +298,7 @@ mod tests {
     use fabric_runtime::brdf::{cloth_frame, cloth_transmission_response};
 
     fn truth() -> ClothTransmission {
-        ClothTransmission { kd: Vec3::new(0.04, 0.03, 0.02), lobe: ClothLobe { k: Vec3::new(0.3, 0.25, 0.2), beta: 0.35, gamma: 1.2 }, tau: 0.6 }
+        ClothTransmission { kd: Vec3::new(0.04, 0.03, 0.02), lobe: ClothLobe { k: Vec3::new(0.3, 0.25, 0.2), beta: 0.35, gamma: 1.2 }, tau: 0.6, gap: Default::default() }
     }
 
     /// Backlit samples of a known term over random pairs in random tilted frames.
@@ -363,7 +366,7 @@ mod tests {
         assert!((albedo.x - 0.2 * std::f32::consts::PI).abs() < 2e-3, "{albedo}");
         // A term passing more than it gets is scaled down to an albedo of 1, and one
         // within bounds is left alone.
-        let bright = ClothTransmission { kd: Vec3::splat(0.5), lobe: ClothLobe { k: Vec3::splat(2.0), beta: 0.3, gamma: 0.0 }, tau: 0.0 };
+        let bright = ClothTransmission { kd: Vec3::splat(0.5), lobe: ClothLobe { k: Vec3::splat(2.0), beta: 0.3, gamma: 0.0 }, tau: 0.0, gap: Default::default() };
         assert!(worst_albedo(&bright, &frame) > 1.5);
         let capped = cap_energy(&bright, &frame);
         assert!((worst_albedo(&capped, &frame) - 1.0).abs() < 1e-3, "{}", worst_albedo(&capped, &frame));

@@ -31,7 +31,7 @@ use serde::Serialize;
 use fabric_runtime::brdf::MAX_LOBES;
 use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
-use fabric_runtime::brdf::{ClothTransmission, cloth_frame, cloth_mirror_z};
+use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z, cloth_openness};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
 use fabric_runtime::hybrid::{PackedTransmission, TexelBrdf, decode_frame, encode_frame};
 use fabric_runtime::hybrid::compact;
@@ -315,7 +315,8 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                     let frame = fit.lobes.first().map_or(cloth_frame(Vec3::Z, Vec3::X), |(_, n, t)| decode_frame_of(*n, *t));
                     let samples: Vec<TransTarget> = backlit.iter().zip(&t_acc).map(|(&(wi, wo), &radiance)| TransTarget { geo: TransGeo::new(&frame, wi, wo), radiance }).collect();
                     let f = fit_transmission(&samples, &TransmissionFitOptions { max_evals: 120, restarts: 1, ..Default::default() });
-                    (cap_energy(&f.transmission, &frame), t_acc, f.relative_residual())
+                    let gap = coarse_openness(&kids.iter().map(|&(ci, cj, n)| (finer.texel_brdf(ci, cj).transmission.gap, n as f32 / total.max(1) as f32)).collect::<Vec<_>>());
+                    (ClothTransmission { gap, ..cap_energy(&f.transmission, &frame) }, t_acc, f.relative_residual())
                 });
                 bar.advance(1);
                 (fit, acc, trans, swept)
@@ -483,6 +484,20 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
     }
 }
 
+/// A coarse texel's openness from its children's (openness, share): the mean open
+/// fraction matched at normal view (μ = 1) and at μ = ½, where the views the gaps are
+/// seen through lie (a sum of exponentials in 1/μ is not one; beyond μ = ½ the two
+/// differ by little that the gaps still pass).
+pub fn coarse_openness(children: &[(ClothOpenness, f32)]) -> ClothOpenness {
+    let at = |mu: f32| children.iter().map(|(g, share)| share * cloth_openness(g, mu)).sum::<f32>();
+    let (o, half) = (at(1.0), at(0.5));
+    if !(o > 0.0) {
+        return ClothOpenness::default();
+    }
+    let q = if half > 0.0 { (o / half).ln().clamp(0.0, OPENNESS_Q_MAX) } else { OPENNESS_Q_MAX };
+    ClothOpenness { o: o.min(1.0), q }
+}
+
 /// The frame (n, t) as a renderer decodes it from the file (octahedral normal, tangent
 /// angle): the transmission term is fitted in the frame it will be evaluated in.
 fn decode_frame_of(n: Vec3, t: Vec3) -> fabric_runtime::brdf::ClothFrame {
@@ -492,3 +507,22 @@ fn decode_frame_of(n: Vec3, t: Vec3) -> fabric_runtime::brdf::ClothFrame {
 
 /// Step budget of the prefilter's visibility rays.
 const VISIBILITY_STEPS: u32 = 4096;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_footprint_of_one_openness_keeps_it_and_closed_children_dilute_it() {
+        let g = ClothOpenness { o: 0.2, q: 1.3 };
+        let same = coarse_openness(&[(g, 0.25); 4]);
+        assert!((same.o - g.o).abs() < 1e-6 && (same.q - g.q).abs() < 1e-4, "{same:?}");
+        let half = coarse_openness(&[(g, 0.25), (g, 0.25), (ClothOpenness::default(), 0.25), (ClothOpenness::default(), 0.25)]);
+        assert!((half.o - 0.1).abs() < 1e-6 && (half.q - g.q).abs() < 1e-4, "{half:?}");
+        assert_eq!(coarse_openness(&[(ClothOpenness::default(), 1.0)]), ClothOpenness::default());
+        // Two rates: the mean matches at μ = 1 and μ = ½.
+        let mixed = coarse_openness(&[(ClothOpenness { o: 0.2, q: 0.5 }, 0.5), (ClothOpenness { o: 0.2, q: 4.0 }, 0.5)]);
+        let mean_half = 0.5 * (cloth_openness(&ClothOpenness { o: 0.2, q: 0.5 }, 0.5) + cloth_openness(&ClothOpenness { o: 0.2, q: 4.0 }, 0.5));
+        assert!((cloth_openness(&mixed, 0.5) - mean_half).abs() < 1e-6 && (mixed.o - 0.2).abs() < 1e-6);
+    }
+}

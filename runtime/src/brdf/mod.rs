@@ -450,13 +450,43 @@ pub struct ClothTransmission {
     /// τ ∈ [0, TAU_MAX]: the attenuation exp(−τ·(1/μ_i + 1/μ_o − 2)), 1 at normal
     /// incidence and view.
     pub tau: f32,
+    /// The light that crosses the texel unscattered, through the gaps between yarns
+    /// (format 1.10; zero in older files).
+    pub gap: ClothOpenness,
 }
 
 impl ClothTransmission {
     /// Whether any light comes through.
     pub fn is_zero(&self) -> bool {
-        self.kd.max_element() <= 0.0 && self.lobe.k.max_element() <= 0.0
+        self.kd.max_element() <= 0.0 && self.lobe.k.max_element() <= 0.0 && !(self.gap.o > 0.0)
     }
+}
+
+/// Largest decay parameter q of a texel's openness.
+pub const OPENNESS_Q_MAX: f32 = 64.0;
+
+/// A texel's openness (format 1.10; runtime/HYBRID_FORMAT.md §6.4): the fraction of
+/// straight rays along −ω_o that cross the cloth untouched, O(μ_o) = o · exp(−q·(1/μ_o − 1))
+/// ([`cloth_openness`]). A renderer shows the light behind the sheet along the same ray
+/// (the environment map below) times O. It is the delta part of the transmission, which
+/// a directional light is never seen through and which the fitted term cannot hold.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ClothOpenness {
+    /// o ∈ [0, 1]: the open fraction seen straight down.
+    pub o: f32,
+    /// q ∈ [0, OPENNESS_Q_MAX]: how fast the gaps close with the slant of the view.
+    pub q: f32,
+}
+
+/// O(μ_o) = o · exp(−q·(1/μ_o − 1)): a slab of open columns closes as its optical depth
+/// grows with the slant path 1/μ, normalized so that O(1) = o. μ_o = |cos| to the tile
+/// normal clamped to [TRANSMISSION_MU_MIN, 1], o to [0, 1], q to [0, OPENNESS_Q_MAX].
+#[inline]
+pub fn cloth_openness(g: &ClothOpenness, mu_o: f32) -> f32 {
+    let o = g.o.max(0.0).min(1.0);
+    let q = g.q.max(0.0).min(OPENNESS_Q_MAX);
+    let mo = mu_o.abs().max(TRANSMISSION_MU_MIN).min(1.0);
+    o * (-q * (1.0 / mo - 1.0)).exp()
 }
 
 /// The attenuation of light crossing the sheet between cosines μ_i, μ_o (to the tile's

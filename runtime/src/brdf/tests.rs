@@ -246,7 +246,7 @@ fn twin_arctangent_is_accurate_everywhere() {
 }
 
 fn transmission() -> ClothTransmission {
-    ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.25, gamma: 1.0 }, tau: 0.7 }
+    ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.25, gamma: 1.0 }, tau: 0.7, gap: Default::default() }
 }
 
 #[test]

@@ -55,7 +55,10 @@
 //! mean under a uniform map ([`transmission_env_diffuse_factor`]): exact for a constant
 //! map at every τ and for any map at τ = 0; where τ is large the true weight leans
 //! toward the nadir more than the cosine does (the approximation, measured in
-//! runtime/ENV_MEASUREMENTS.md, "Light through the cloth"). The renderers add this term
+//! runtime/ENV_MEASUREMENTS.md, "Light through the cloth"). Beside the scattered light,
+//! the gaps between yarns show the map itself: O(μ_o) · L(−ω_o), O the texel's openness
+//! (format 1.10, brdf/mod.rs `cloth_openness`), L the sharpest level of the chain below
+//! the horizon. The renderers add this term
 //! only where the map has light below the sheet ([`PrefilteredEnv::lights_below`]), so a
 //! frame with none pays nothing for it, as with lights (shading.rs).
 
@@ -64,7 +67,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_fresnel, cloth_gaussian, cloth_mirror_z, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_fresnel, cloth_gaussian, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -332,7 +335,9 @@ pub fn transmission_env_diffuse_factor(tau: f32) -> f32 {
 
 /// Radiance toward `wo` (above the sheet) from a texel's transmission term lit by the
 /// map below the sheet (module docs, "Light through the cloth"); `f` is lobe 0's frame,
-/// as for a light behind the cloth (shading.rs). Zero without a term or for ω_o below.
+/// as for a light behind the cloth (shading.rs). Adds the map seen straight through the
+/// gaps, O(μ_o) · L(−ω_o) (format 1.10, [`crate::brdf::cloth_openness`]). Zero without a
+/// term or for ω_o below.
 pub fn transmission_env_response(t: &ClothTransmission, f: &ClothFrame, wo: Vec3, budget: EnvBudget, env: &PrefilteredEnv) -> Vec3 {
     if !(wo.z > 0.0) || t.is_zero() {
         return Vec3::ZERO;
@@ -342,6 +347,12 @@ pub fn transmission_env_response(t: &ClothTransmission, f: &ClothFrame, wo: Vec3
     if kd.max_element() > 0.0 {
         // A(τ; 1, μ_o) = e^{−τ(1/μ_o − 1)}: the view's share of the attenuation.
         r += kd * env.irradiance_full(-Vec3::Z) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z));
+    }
+    // The map seen straight through the gaps along the view ray: the sharpest level of
+    // the chain below the horizon, times the texel's openness O(μ_o).
+    let gap = cloth_openness(&t.gap, wo.z);
+    if gap > 0.0 {
+        r += gap * env.blurred(-wo, 0.0);
     }
     let mut group = EnvGroup::default();
     lobe_env_nodes(&t.lobe, 1.0, 0.0, f, wo, BrdfReading::Bounded, EnvSide::Transmitted { tau: t.tau }, budget, |node, closes| {
@@ -388,7 +399,7 @@ pub fn env_quadrature(map: &EnvMap, n: usize, g: impl Fn(Vec3) -> Vec3) -> Vec3 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::{ClothParams, ClothTransmission, cloth_frame};
+    use crate::brdf::{ClothOpenness, ClothParams, ClothTransmission, cloth_frame};
     use crate::scene::{EnvMapOptions, Sky, direction_from_angles};
 
     fn texel(kd: Vec3, lobes: &[ClothLobe], n: Vec3, t: Vec3) -> TexelBrdf {
@@ -574,6 +585,7 @@ mod tests {
                 kd: Vec3::splat(0.05 * rnd()) * (case % 3) as f32,
                 lobe: ClothLobe { k: Vec3::new(0.2 + rnd(), 0.2 + rnd(), 0.2 + rnd()), beta: 0.05 + 0.6 * rnd() * rnd(), gamma: if rnd() < 0.5 { 0.0 } else { 0.2 + 1.5 * rnd() } },
                 tau: 3.0 * rnd() * rnd(),
+                gap: Default::default(),
             };
             let wo = direction_from_angles(70.0 * rnd(), 360.0 * rnd());
             let lit: Vec3 = env.lights.iter().map(|l| { let s = l.sample(Vec3::ZERO); s.irradiance * crate::brdf::cloth_transmission_response(&t, &f, s.wi, wo) }).sum();
@@ -617,18 +629,49 @@ mod tests {
         // A term with no transmission passes nothing, and a view from below sees nothing.
         let (_, env) = sky_below();
         let f = cloth_frame(Vec3::Z, Vec3::X);
-        let t = ClothTransmission { kd: Vec3::splat(0.1), lobe: ClothLobe { k: Vec3::ONE, beta: 0.2, gamma: 0.0 }, tau: 0.5 };
+        let t = ClothTransmission { kd: Vec3::splat(0.1), lobe: ClothLobe { k: Vec3::ONE, beta: 0.2, gamma: 0.0 }, tau: 0.5, gap: Default::default() };
         assert!(transmission_env_response(&t, &f, direction_from_angles(30.0, 0.0), EnvBudget::SURFACE, &env).min_element() > 0.0);
         assert_eq!(transmission_env_response(&ClothTransmission::default(), &f, Vec3::Z, EnvBudget::SURFACE, &env), Vec3::ZERO);
         assert_eq!(transmission_env_response(&t, &f, -Vec3::Z, EnvBudget::SURFACE, &env), Vec3::ZERO);
         // Extreme terms stay finite.
         for (beta, gamma, tau) in [(BETA_MIN, 0.0, 0.0), (BETA_MAX, crate::brdf::GAMMA_MAX, crate::brdf::TAU_MAX), (f32::NAN, f32::NAN, f32::NAN), (-1.0, -1.0, 1e9)] {
-            let t = ClothTransmission { kd: Vec3::splat(K_MAX), lobe: ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }, tau };
+            let t = ClothTransmission { kd: Vec3::splat(K_MAX), lobe: ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }, tau, gap: ClothOpenness { o: beta, q: tau } };
             for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-4).normalize()] {
                 let r = transmission_env_response(&t, &f, wo, EnvBudget::SURFACE, &env);
                 assert!(r.is_finite() && r.min_element() >= 0.0, "β {beta} γ {gamma} τ {tau} ω_o {wo}: {r}");
             }
         }
+    }
+
+    /// A texel's openness shows the map behind the sheet along the view ray, O(μ_o) ·
+    /// L(−ω_o): exactly under a map constant below, and from the side the ray goes to.
+    #[test]
+    fn the_gaps_show_the_map_behind_the_sheet() {
+        let sky = Sky::default().env_map(EnvMapOptions::default()).unwrap();
+        let (w, h) = (sky.width(), sky.height());
+        let below = |x: u32, y: u32| sky.direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+        let constant: Vec<Vec3> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| if below(x, y).z < 0.0 { Vec3::new(2.0, 1.0, 0.5) } else { Vec3::ZERO }).collect();
+        let env = PrefilteredEnv::new(&sky.with_texels(constant).unwrap());
+        let f = cloth_frame(Vec3::Z, Vec3::X);
+        let gap = ClothOpenness { o: 0.04, q: 1.2 };
+        let t = ClothTransmission { gap, ..Default::default() };
+        assert!(!t.is_zero(), "a texel that is only open lets light through");
+        for polar in [0.0f32, 30.0, 60.0, 80.0] {
+            let wo = direction_from_angles(polar, 70.0);
+            let expect = Vec3::new(2.0, 1.0, 0.5) * 0.04 * (-1.2 * (1.0 / polar.to_radians().cos().max(0.05) - 1.0)).exp();
+            let r = transmission_env_response(&t, &f, wo, EnvBudget::SURFACE, &env);
+            assert!((r - expect).abs().max_element() <= 1e-3 * expect.max_element() + 1e-9, "polar {polar}: {r} vs {expect}");
+        }
+        // Only the half of the ground the view ray goes on to is lit (x < 0): a view from
+        // +x sees it through the gaps, a view from −x does not.
+        let half: Vec<Vec3> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| { let d = below(x, y); if d.z < 0.0 && d.x < 0.0 { Vec3::ONE } else { Vec3::ZERO } }).collect();
+        let env = PrefilteredEnv::new(&sky.with_texels(half).unwrap());
+        let toward = transmission_env_response(&t, &f, direction_from_angles(40.0, 0.0), EnvBudget::SURFACE, &env);
+        let away = transmission_env_response(&t, &f, direction_from_angles(40.0, 180.0), EnvBudget::SURFACE, &env);
+        let open = cloth_openness(&gap, 40f32.to_radians().cos());
+        assert!((toward.x - open).abs() < 0.05 * open && away.x < 0.05 * open, "{toward} / {away} vs {open}");
+        // No openness, no term: the scattered part alone (none here).
+        assert_eq!(transmission_env_response(&ClothTransmission::default(), &f, Vec3::Z, EnvBudget::SURFACE, &env), Vec3::ZERO);
     }
 
     /// The sweep behind the budgets: `cargo test -p fabric-runtime --release env_budget_sweep -- --ignored --nocapture`.

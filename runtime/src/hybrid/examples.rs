@@ -248,7 +248,7 @@ pub fn add_transmission(model: &mut HybridModel, t: &crate::brdf::ClothTransmiss
             .map(|(i, j)| {
                 let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
                 let s = if odd { 1.5 } else { 0.5 };
-                PackedTransmission::new(&crate::brdf::ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau })
+                PackedTransmission::new(&crate::brdf::ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau, gap: crate::brdf::ClothOpenness { o: t.gap.o * s / 1.5, ..t.gap } })
             })
             .collect();
         l.transmission = Some(records);

@@ -193,6 +193,10 @@ pub struct BakeArgs {
     /// Samples per texel of the backlit training renderings [default: --spp].
     #[arg(long)]
     pub bsdf_spp: Option<u32>,
+    /// Rays per texel per view that measure the gaps between yarns, where an environment
+    /// map below the sheet is seen straight through (format 1.10; 0: none).
+    #[arg(long, default_value_t = 8)]
+    pub openness_rays: u32,
     #[command(flatten)]
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
@@ -271,7 +275,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.bsdf_spp.is_some_and(|s| s < 2) {
         bail!("--bsdf-spp {}: need at least 2 (two halves)", args.bsdf_spp.unwrap_or(0));
     }
-    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), ..Default::default() });
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -402,6 +406,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             t.render_seconds,
             t.fit_seconds
         );
+        if let Some(o) = &t.openness {
+            let at = |v: &[f64]| v.iter().map(|x| format!("{:.2}%", 100.0 * x)).collect::<Vec<_>>().join("/");
+            let polar = o.polar_deg.iter().map(|d| format!("{d:.0}")).collect::<Vec<_>>().join("/");
+            println!("  gaps between yarns: {} of {} texels open (largest o {:.3}); rays that cross at polar {polar}°: volume {}, model {} ({:.1} s)", o.open_texels, r.dims[0] * r.dims[1], o.max_o, at(&o.volume), at(&o.model), o.seconds);
+        }
         for p in &t.problems {
             println!("warning: transmission of cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
         }
