@@ -22,7 +22,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothOpenness, ClothParams, ClothTransmission, DiffuseLaw};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw};
 use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
@@ -895,7 +895,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         let views = openness_views();
         let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
         let means = measure_openness(skeleton, measure, &views, to.openness_rays, mix64(seed ^ 0x6761_7073));
-        let gaps: Vec<ClothOpenness> = means.par_iter().map(|m| fit_openness(m)).collect();
+        let gaps = fit_openness(&means);
         bar.finish();
         let report = openness_report(&means, &gaps, &views, to.openness_rays, t_gap.elapsed().as_secs_f64());
         (capped.into_iter().zip(gaps).map(|(t, gap)| ClothTransmission { gap, ..t }).collect(), Some(report))

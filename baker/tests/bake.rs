@@ -135,6 +135,17 @@ fn a_bsdf_bake_fits_the_light_that_comes_through() {
     assert!(t.block_error < 0.8 && t.error <= t.cluster_error + 1e-9, "{t:?}");
     assert!(b.model.levels.iter().all(|l| l.transmission.is_some()), "every level of the chain carries it");
     assert_eq!(format::read(&format::to_bytes(&b.model).unwrap()).unwrap(), b.model);
+    // The gaps (format 1.10): the sheet's openness per polar angle is the volume's where
+    // light gets through, and the chain keeps the mean open fraction.
+    let g = t.openness.as_ref().expect("a BSDF bake measures the gaps");
+    eprintln!("openness: {g:?}");
+    assert!(g.open_texels > 0 && g.volume[0] > 0.0, "{g:?}");
+    for k in 0..g.volume.len() {
+        assert!((g.model[k] - g.volume[k]).abs() <= 0.15 * g.volume[k] + 2e-4, "polar {}°: model {} vs volume {}", g.polar_deg[k], g.model[k], g.volume[k]);
+    }
+    let mean_o = |l: &fabric_runtime::hybrid::Level| l.transmission.as_ref().unwrap().iter().map(|r| r.decode().gap.o as f64).sum::<f64>() / (l.width * l.height) as f64;
+    let (o0, o1) = (mean_o(&b.model.levels[0]), mean_o(&b.model.levels[1]));
+    assert!(o0 > 0.0 && (o1 - o0).abs() < 0.02 * o0, "mean o: level 0 {o0}, level 1 {o1}");
     // A backlit held-out view.
     let pair = fabric_baker::fit::directions::backlit_pairs(&held_out_pairs(&b.report.pairs, 1, 50.0, 5.0, 13))[0];
     assert!(pair.wi.z < 0.0);

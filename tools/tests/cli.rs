@@ -224,8 +224,9 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
+        (&["bake", "/nonexistent/fabric", "--bsdf", "--openness-rays", "100000"], "openness_rays"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
         (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
         (&["bake", "/nonexistent/fabric", "--k-min", "8", "--k-max", "4"], "k_min"),
