@@ -774,6 +774,25 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         stage("flyaways", t);
         flyaway_report = Some(rep);
     }
+    // 5b. A BSDF's gaps between yarns: what a light behind is never seen through (no
+    // training pair shows it), measured on the whole volume along the probe's rays, behind
+    // the flyaways just fitted.
+    if let (Some(to), Some(report), Some(records)) = (&options.transmission, transmission_report.as_mut(), model.levels[0].transmission.clone()) {
+        if to.openness_rays > 0 {
+            let t = Instant::now();
+            let views = openness_views();
+            let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
+            let full = MeasureScene::new(volume, options.lookup, Some(&heights), None)?;
+            let means = measure_openness(&model, &full, &views, to.openness_rays, mix64(options.seed ^ 0x6761_7073));
+            let gaps = fit_openness(&means);
+            bar.finish();
+            model.levels[0].transmission = Some(records.iter().zip(&gaps).map(|(r, &gap)| PackedTransmission::new(&ClothTransmission { gap, ..r.decode() })).collect());
+            let seconds = t.elapsed().as_secs_f64();
+            report.openness = Some(openness_report(&means, &gaps, &views, to.openness_rays, seconds));
+            report.fit_seconds += seconds;
+            stage("transmission: gaps", t);
+        }
+    }
     model.validate()?;
     // 6. The mip chain.
     let mut prefilter_report = None;
@@ -888,27 +907,13 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
     let predictions = predict_all(&|j| capped[j]);
     let (error, block_error) = image_errors(&predictions, &training.images, nx, ny);
     bar.finish();
-    // The gaps: what a directional light behind is never seen through (no training pair
-    // shows it), measured from the volume along the probe's rays.
-    let (capped, openness) = if to.openness_rays > 0 {
-        let t_gap = Instant::now();
-        let views = openness_views();
-        let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
-        let means = measure_openness(skeleton, measure, &views, to.openness_rays, mix64(seed ^ 0x6761_7073));
-        let gaps = fit_openness(&means);
-        bar.finish();
-        let report = openness_report(&means, &gaps, &views, to.openness_rays, t_gap.elapsed().as_secs_f64());
-        (capped.into_iter().zip(gaps).map(|(t, gap)| ClothTransmission { gap, ..t }).collect(), Some(report))
-    } else {
-        (capped, None)
-    };
     let problems = fits
         .iter()
         .enumerate()
         .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
         .collect();
     let pair_errors = predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect();
-    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, openness, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
+    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, openness: None, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
     Ok((capped, report))
 }
 

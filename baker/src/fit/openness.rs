@@ -9,11 +9,14 @@
 //! (runtime/ENV_MEASUREMENTS.md, "Light through the cloth, and the horizon").
 //!
 //! Measured, not fitted to images: along the rays the reference's measurement traces
-//! (`MeasureScene::sample_ray`, through the masked surface: the model's flyaways cover
-//! the surface as the volume's do) at the views [`openness_views`], each ray's
-//! transmittance through the whole sheet (ratio tracking, unbiased) is credited to the
-//! texel the model shows along that ray (the runtime's probe, as the training samples
-//! are), so that where parallax moves a gap the renderer shows it where it lies. Then
+//! (`MeasureScene::sample_ray`) at the views [`openness_views`], each ray's transmittance
+//! through the whole volume (ratio tracking, unbiased) is credited to the texel the model
+//! shows along that ray (the runtime's probe, as the training samples are), so that where
+//! parallax moves a gap the renderer shows it where it lies, and divided by what the
+//! model's flyaways in front let through, since the renderer composites them over it.
+//! (Measured on the masked surface instead, the halo above the height field that the
+//! mask removes and no flyaway voxel holds passed 6× the light at 60° that the volume
+//! does.) Then
 //! O(μ_o) = o · exp(−q·(1/μ_o − 1)) with q shared by the sheet and o per texel, fitted
 //! to the mean transmittance per view ([`fit_openness`]). The form has no
 //! azimuth: a gap between parallel yarns closes faster across them than along them, and
@@ -46,14 +49,20 @@ pub fn openness_views() -> Vec<Vec3> {
     views
 }
 
-/// One texel's measurement at one view: the rays credited to it and their mean
-/// transmittance.
+/// One texel's measurement at one view.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ViewMean {
     /// 1/μ_o − 1 (the slant of the view).
     pub slant: f32,
+    /// What the surface must let through: Σ T_volume / Σ T_flyaways over the rays
+    /// credited to the texel (the volume's transmittance, flyaways and all, over what the
+    /// model's flyaways in front already take away), at most 1.
     pub transmittance: f32,
+    /// The fit's weight: Σ T_flyaways (a ray the model's flyaways block counts for
+    /// nothing; without flyaways, the rays).
     pub rays: f32,
+    /// The rays credited to the texel.
+    pub count: f32,
 }
 
 /// What the openness stage measured.
@@ -63,8 +72,8 @@ pub struct OpennessReport {
     /// Rays per texel per view.
     pub rays: u32,
     /// Per polar angle of [`OPENNESS_POLAR_DEG`]: the mean transmittance of the sheet
-    /// along the rays (the volume) and the mean the fitted openness gives along them (the
-    /// model).
+    /// along the rays (the volume, flyaways and all) and the mean the fitted openness
+    /// gives along them behind the model's flyaways (the model).
     pub polar_deg: Vec<f32>,
     pub volume: Vec<f64>,
     pub model: Vec<f64>,
@@ -76,9 +85,10 @@ pub struct OpennessReport {
 }
 
 /// Per texel (x fastest) of `model`, per view of `views` (in order): the rays `measure`
-/// traces through texel footprints at that view, their transmittance through the sheet,
-/// credited to the texel `model` shows along each (rays that miss the model's surface are
-/// dropped). `rays` per texel per view (straight down: `OPENNESS_AZIMUTHS` times as
+/// traces through texel footprints at that view, their transmittance through the sheet
+/// (the whole volume: `measure` without a mask) and through the model's level-0 flyaways
+/// in front of its surface, credited to the texel `model` shows along each (rays that
+/// miss the model's surface are dropped). `rays` per texel per view (straight down: `OPENNESS_AZIMUTHS` times as
 /// many); deterministic per `seed`.
 pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Vec3], rays: u32, seed: u64) -> Vec<Vec<ViewMean>> {
     let (nx, ny) = measure.texels();
@@ -95,7 +105,7 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
         // as many rays as a ring, so that the fit weighs the angles alike.
         let rays = if wo.z >= 1.0 - 1e-6 { rays * OPENNESS_AZIMUTHS as u32 } else { rays };
         // (texel hit, transmittance) of every ray of this view.
-        let hits: Vec<(u32, f32)> = (0..texels)
+        let hits: Vec<(u32, f32, f32)> = (0..texels)
             .into_par_iter()
             .flat_map_iter(|texel| {
                 let (x, y) = (texel % nx, texel / nx);
@@ -104,26 +114,25 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
                     let mut rng = Rng::new(seed, ((v as u64) << 32) | texel as u64, s as u64);
                     let (u, w) = rng.next_2d();
                     let (o, d) = measure.sample_ray(x, y, u, w, wo);
-                    let hit = scene.probe_ray(&Ray::new(o, d), 0, false).surface?;
+                    let hit = scene.probe_ray(&Ray::new(o, d), 0, true).surface?;
                     let (t, truncated) = medium.transmittance(&GridRay::new(&medium.medium, o, d), 0.0, f32::INFINITY, &mut rng);
                     let t = if truncated || !t.is_finite() { 0.0 } else { t };
-                    Some((hit.texel.0 + model.width() * hit.texel.1, t))
+                    let fly = if hit.transmittance.is_finite() { hit.transmittance.clamp(0.0, 1.0) } else { 0.0 };
+                    Some((hit.texel.0 + model.width() * hit.texel.1, t, fly))
                 })
             })
             .collect();
         let slant = 1.0 / wo.z - 1.0;
-        for (hit, t) in hits {
+        for (hit, t, fly) in hits {
             let m = &mut out[hit as usize][v];
-            m.slant = slant;
             m.transmittance += t;
-            m.rays += 1.0;
+            m.rays += fly;
+            m.count += 1.0;
         }
         for per_texel in out.iter_mut() {
             let m = &mut per_texel[v];
             m.slant = slant;
-            if m.rays > 0.0 {
-                m.transmittance /= m.rays;
-            }
+            m.transmittance = if m.rays > 0.0 { (m.transmittance / m.rays).min(1.0) } else { 0.0 };
         }
     }
     out
@@ -211,7 +220,7 @@ pub fn openness_report(means: &[Vec<ViewMean>], fitted: &[ClothOpenness], views:
         for (m, &w) in per_texel.iter().zip(views) {
             let Some(p) = OPENNESS_POLAR_DEG.iter().position(|&d| (d - polar_of(w)).abs() < 0.5) else { continue };
             volume[p].0 += (m.transmittance * m.rays) as f64;
-            volume[p].1 += m.rays as f64;
+            volume[p].1 += m.count as f64;
             model[p] += (cloth_openness(g, w.z) * m.rays) as f64;
         }
     }
@@ -236,7 +245,7 @@ mod tests {
         let mut rng = Rng::new(7, 8, 9);
         openness_views()
             .iter()
-            .map(|w| ViewMean { slant: 1.0 / w.z - 1.0, transmittance: (cloth_openness(g, w.z) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0 })
+            .map(|w| ViewMean { slant: 1.0 / w.z - 1.0, transmittance: (cloth_openness(g, w.z) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 })
             .collect()
     }
 
@@ -261,10 +270,10 @@ mod tests {
     fn closed_or_unseen_texels_get_no_openness() {
         assert!(fit_openness(&[]).is_empty());
         assert_eq!(fit_openness(&[means(&ClothOpenness::default(), 0.0)]), vec![ClothOpenness::default()]);
-        let unseen: Vec<ViewMean> = means(&ClothOpenness { o: 0.5, q: 1.0 }, 0.0).into_iter().map(|m| ViewMean { rays: 0.0, transmittance: 0.0, ..m }).collect();
+        let unseen: Vec<ViewMean> = means(&ClothOpenness { o: 0.5, q: 1.0 }, 0.0).into_iter().map(|m| ViewMean { rays: 0.0, count: 0.0, transmittance: 0.0, ..m }).collect();
         assert_eq!(open_fraction(&unseen, 1.0), 0.0);
         // Non-finite input never reaches the record.
-        let bad = vec![ViewMean { slant: 0.0, transmittance: f32::NAN, rays: 1.0 }, ViewMean { slant: 1.0, transmittance: 0.5, rays: 1.0 }];
+        let bad = vec![ViewMean { slant: 0.0, transmittance: f32::NAN, rays: 1.0, count: 1.0 }, ViewMean { slant: 1.0, transmittance: 0.5, rays: 1.0, count: 1.0 }];
         let g = fit_openness(&[bad.clone(), means(&ClothOpenness { o: 0.1, q: 1.0 }, 0.0)]);
         assert!(g.iter().all(|g| g.o.is_finite() && g.q.is_finite() && (0.0..=1.0).contains(&g.o)), "{g:?}");
     }
