@@ -321,6 +321,7 @@ float cloth_diffuse_env_factor(uint law, vec3 wo) {
 struct ClothOpenness {
     float o;
     float q;
+    vec2 aniso;
 };
 struct ClothTransmission {
     vec3 kd;
@@ -329,13 +330,24 @@ struct ClothTransmission {
     ClothOpenness gap;
 };
 
-// o exp(-q (1/mu_o - 1)), mu_o = |cos| to the tile normal clamped to [0.05, 1], o to
-// [0, 1], q to [0, 64]: the map behind the sheet seen through the gaps, per unit radiance.
-float cloth_openness(ClothOpenness g, float mu_o) {
+// o exp(-q (1 + a cos 2phi + b sin 2phi) (1/mu_o - 1)), mu_o = |wo.z| clamped to
+// [0.05, 1], phi wo's azimuth in the tile, o to [0, 1], q to [0, 64], a, b to [-1, 1],
+// the azimuth factor to [0, 2]: the map behind the sheet seen through the gaps, per unit
+// radiance.
+float cloth_openness(ClothOpenness g, vec3 wo) {
     float o = min(max(g.o, 0.0), 1.0);
     float q = min(max(g.q, 0.0), CLOTH_OPENNESS_Q_MAX);
-    float mo = min(max(abs(mu_o), CLOTH_TRANSMISSION_MU_MIN), 1.0);
-    return o * exp(-q * (1.0 / mo - 1.0));
+    float mo = min(max(abs(wo.z), CLOTH_TRANSMISSION_MU_MIN), 1.0);
+    float r2 = wo.x * wo.x + wo.y * wo.y;
+    float c2 = 0.0;
+    float s2 = 0.0;
+    if (r2 > 1e-12) {
+        c2 = (wo.x * wo.x - wo.y * wo.y) / r2;
+        s2 = 2.0 * wo.x * wo.y / r2;
+    }
+    vec2 ab = min(max(g.aniso, vec2(-1.0)), vec2(1.0));
+    float rate = min(max(1.0 + ab.x * c2 + ab.y * s2, 0.0), 2.0);
+    return o * exp(-q * rate * (1.0 / mo - 1.0));
 }
 
 // exp(-tau (1/mu_i + 1/mu_o - 2)), mu = |cos| to the tile normal clamped to [0.05, 1],

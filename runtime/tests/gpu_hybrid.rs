@@ -607,7 +607,7 @@ fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
     let mut model = examples::synthetic_model(64, 3);
-    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.3, q: 1.5 } }, 8);
+    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.3, q: 1.5, aniso: [0.6, -0.4] } }, 8);
     let below = sky_remapped(20.0, |y, h| Some(h - 1 - y));
     assert!(below.prefiltered.lights_below() && below.prefiltered.lights.iter().all(|l| matches!(*l, Light::Directional { dir_to_light, .. } if dir_to_light.z < 0.0)), "the sun below the sheet");
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, env: Some(below.clone()), ..Default::default() };
@@ -635,7 +635,7 @@ fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
     // The gaps (format 1.10) are part of what the twins agreed on above: closing them
     // darkens the image.
     let mut closed = model.clone();
-    closed.levels.iter_mut().flat_map(|l| l.transmission.iter_mut().flatten()).for_each(|t| t.gap = [0; 2]);
+    closed.levels.iter_mut().flat_map(|l| l.transmission.iter_mut().flatten()).for_each(|t| (t.gap, t.gap_aniso) = ([0; 2], 0));
     let (open, shut) = (render(&model, &near, &[], &opts).unwrap().mean(), render(&closed, &near, &[], &opts).unwrap().mean());
     println!("map below, near: open {open:.4e}, closed {shut:.4e}");
     assert!(open > 1.03 * shut, "the map seen through the gaps: {open} vs closed {shut}");

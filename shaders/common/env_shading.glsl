@@ -236,7 +236,7 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
         resp = kd * env_irradiance_full(vec3(0.0, 0.0, -1.0)) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z));
     }
     // The map seen straight through the gaps along the view ray (format 1.10).
-    float gap = cloth_openness(t.gap, wo.z);
+    float gap = cloth_openness(t.gap, wo);
     if (gap > 0.0) {
         resp += gap * env_blurred(-wo, 0.0);
     }

@@ -137,6 +137,7 @@ ClothTransmission packed_transmission(uint index) {
     t.tau = f16_value(c.x);
     t.gap.o = f16_value(c.x >> 16);
     t.gap.q = f16_value(c.y);
+    t.gap.aniso = vec2(snorm8_value(c.y, 2u), snorm8_value(c.y, 3u));
     return t;
 }
 

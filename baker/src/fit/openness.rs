@@ -17,10 +17,10 @@
 //! (Measured on the masked surface instead, the halo above the height field that the
 //! mask removes and no flyaway voxel holds passed 6× the light at 60° that the volume
 //! does.) Then
-//! O(μ_o) = o · exp(−q·(1/μ_o − 1)) with q shared by the sheet and o per texel, fitted
-//! to the mean transmittance per view ([`fit_openness`]). The form has no
-//! azimuth: a gap between parallel yarns closes faster across them than along them, and
-//! the fit averages the two.
+//! O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)), with q, a and b
+//! shared by the sheet (a gap between parallel yarns closes faster seen across them than
+//! along them) and o per texel, is fitted to the mean transmittance per view
+//! ([`fit_openness`]).
 
 use fabric_runtime::brdf::{ClothOpenness, OPENNESS_Q_MAX, cloth_openness};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
@@ -33,6 +33,7 @@ use serde::Serialize;
 use crate::reference::MeasureScene;
 use crate::reference::rng::Rng;
 use crate::reference::tracking::GridRay;
+use super::simplex::{NelderMead, nelder_mead};
 
 /// Polar angles of the views the openness is measured at (degrees): beyond 75° the gaps
 /// of every measured preset are closed (twill: 0.02% of rays cross at 60°, none at 75°).
@@ -52,8 +53,9 @@ pub fn openness_views() -> Vec<Vec3> {
 /// One texel's measurement at one view.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ViewMean {
-    /// 1/μ_o − 1 (the slant of the view).
+    /// 1/μ_o − 1 (the slant of the view) and (cos 2φ_o, sin 2φ_o) (its azimuth's axis).
     pub slant: f32,
+    pub azimuth: [f32; 2],
     /// What the surface must let through: Σ T_volume / Σ T_flyaways over the rays
     /// credited to the texel (the volume's transmittance, flyaways and all, over what the
     /// model's flyaways in front already take away), at most 1.
@@ -81,6 +83,8 @@ pub struct OpennessReport {
     pub open_texels: usize,
     pub max_o: f32,
     pub q: f32,
+    /// The sheet's azimuth terms (a, b).
+    pub aniso: [f32; 2],
     pub seconds: f64,
 }
 
@@ -123,6 +127,8 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
             })
             .collect();
         let slant = 1.0 / wo.z - 1.0;
+        let r2 = wo.x * wo.x + wo.y * wo.y;
+        let azimuth = if r2 > 1e-12 { [(wo.x * wo.x - wo.y * wo.y) / r2, 2.0 * wo.x * wo.y / r2] } else { [0.0, 0.0] };
         for (hit, t, fly) in hits {
             let m = &mut out[hit as usize][v];
             m.transmittance += t;
@@ -132,80 +138,88 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
         for per_texel in out.iter_mut() {
             let m = &mut per_texel[v];
             m.slant = slant;
+            m.azimuth = azimuth;
             m.transmittance = if m.rays > 0.0 { (m.transmittance / m.rays).min(1.0) } else { 0.0 };
         }
     }
     out
 }
 
-/// The open fraction o ∈ [0, 1] that best fits a texel's view means for a given q: least
-/// squares weighted by rays, Σ n_v (o·e^{−q s_v} − T_v)², in closed form. A texel no ray
-/// showed, or one that lets nothing through, is closed (0). Non-finite means count as 0.
-pub fn open_fraction(means: &[ViewMean], q: f32) -> f32 {
+/// What the texels of a sheet share: q and the azimuth terms (a, b) of
+/// [`cloth_openness`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OpennessShape {
+    pub q: f32,
+    pub aniso: [f32; 2],
+}
+
+impl OpennessShape {
+    /// O / o for a view (`cloth_openness`'s factor, from the view's slant and azimuth).
+    fn falloff(&self, m: &ViewMean) -> f64 {
+        let rate = (1.0 + self.aniso[0] * m.azimuth[0] + self.aniso[1] * m.azimuth[1]).clamp(0.0, 2.0);
+        (-(self.q * rate * m.slant) as f64).exp()
+    }
+}
+
+/// The open fraction o ∈ [0, 1] that best fits a texel's view means for a given shape:
+/// least squares weighted by rays, Σ n_v (o·F_v − T_v)², in closed form. A texel no ray
+/// showed, or one that lets nothing through, is closed (0). Non-finite means are left out.
+pub fn open_fraction(means: &[ViewMean], shape: &OpennessShape) -> f32 {
     let (mut ee, mut et) = (0f64, 0f64);
     for m in means.iter().filter(|m| m.rays > 0.0 && m.transmittance.is_finite()) {
-        let e = (-(q * m.slant) as f64).exp();
+        let e = shape.falloff(m);
         ee += m.rays as f64 * e * e;
         et += m.rays as f64 * e * m.transmittance as f64;
     }
     if ee > 0.0 && et > 0.0 { (et / ee).min(1.0) as f32 } else { 0.0 }
 }
 
-/// The mismatch of the sheet's mean transmittance per polar angle, model against volume,
-/// with q shared and each texel's o fitted ([`open_fraction`]): Σ_k (M_k − V_k)² / V_k
-/// over the rings of [`OPENNESS_POLAR_DEG`] the volume lets light through (a relative
-/// error weighted by how much light the ring carries).
-fn sheet_mismatch(means: &[Vec<ViewMean>], q: f32) -> f64 {
-    let rings = OPENNESS_POLAR_DEG.len();
-    let (mut volume, mut model, mut rays) = (vec![0f64; rings], vec![0f64; rings], vec![0f64; rings]);
+/// The mismatch of the sheet's mean transmittance per view, model against volume, with
+/// the shape shared and each texel's o fitted ([`open_fraction`]): Σ_v (M_v − V_v)² / V_v
+/// over the views the volume lets light through (a relative error weighted by how much
+/// light the view carries). Every texel's means list the same views in the same order.
+fn sheet_mismatch(means: &[Vec<ViewMean>], shape: &OpennessShape) -> f64 {
+    let views = means.iter().map(|m| m.len()).max().unwrap_or(0);
+    let (mut volume, mut model, mut rays) = (vec![0f64; views], vec![0f64; views], vec![0f64; views]);
     for texel in means {
-        let o = open_fraction(texel, q) as f64;
-        for m in texel.iter().filter(|m| m.rays > 0.0 && m.transmittance.is_finite()) {
-            let k = ring_of(m.slant);
-            volume[k] += (m.rays * m.transmittance) as f64;
-            model[k] += m.rays as f64 * o * (-(q * m.slant) as f64).exp();
-            rays[k] += m.rays as f64;
+        let o = open_fraction(texel, shape) as f64;
+        for (v, m) in texel.iter().enumerate().filter(|(_, m)| m.rays > 0.0 && m.transmittance.is_finite()) {
+            volume[v] += (m.rays * m.transmittance) as f64;
+            model[v] += m.rays as f64 * o * shape.falloff(m);
+            rays[v] += m.rays as f64;
         }
     }
-    (0..rings).filter(|&k| rays[k] > 0.0 && volume[k] > 0.0).map(|k| (model[k] - volume[k]).powi(2) / (volume[k] * rays[k])).sum()
+    (0..views).filter(|&v| rays[v] > 0.0 && volume[v] > 0.0).map(|v| (model[v] - volume[v]).powi(2) / (volume[v] * rays[v])).sum()
 }
 
-/// The ring of [`OPENNESS_POLAR_DEG`] nearest a view's slant 1/μ − 1.
-fn ring_of(slant: f32) -> usize {
-    let polar = (1.0 / (1.0 + slant.max(0.0))).clamp(0.0, 1.0).acos().to_degrees();
-    (0..OPENNESS_POLAR_DEG.len()).min_by(|&a, &b| (OPENNESS_POLAR_DEG[a] - polar).abs().total_cmp(&(OPENNESS_POLAR_DEG[b] - polar).abs())).unwrap_or(0)
-}
-
-/// Every texel's openness (x fastest) from its view means: one q for the sheet, each
-/// texel's o fitted for it. q is chosen so that the sheet's mean transmittance per polar
-/// angle matches the volume's ([`sheet_mismatch`]; a geometric grid over (0,
-/// OPENNESS_Q_MAX] and 0, refined by golden section). A q per texel fitted to its own
-/// rays (eight per view) followed their noise and the parallax that moves a gap from
-/// texel to texel: on a twill 64² the sheet's mean came out 19% high straight down,
-/// 26% low at 30–45° and 40% high at 60°; a shared q matches every angle within 8%
-/// (baker/FIT_MEASUREMENTS.md, "Transmission").
+/// Every texel's openness (x fastest) from its view means: q and (a, b) shared by the
+/// sheet, each texel's o fitted for them. The shape is chosen so that the sheet's mean
+/// transmittance per view matches the volume's ([`sheet_mismatch`]): q on a geometric
+/// grid over (0, OPENNESS_Q_MAX] and 0 with (a, b) = 0, then (q, a, b) by Nelder–Mead.
+/// A q per texel fitted to its own rays (eight per view) followed their noise and the
+/// parallax that moves a gap from texel to texel: on a twill 64² the sheet's mean came
+/// out 19% high straight down, 26% low at 30–45° and 40% high at 60°. Without (a, b) a
+/// twill's gaps at 60° came out 3.6× too open seen across its yarns (the mean over
+/// azimuths is right, the azimuth is not; baker/FIT_MEASUREMENTS.md, "Transmission").
 pub fn fit_openness(means: &[Vec<ViewMean>]) -> Vec<ClothOpenness> {
     let mut grid = vec![0.0f32];
     grid.extend((0..=40).map(|i| 0.01 * (OPENNESS_Q_MAX / 0.01).powf(i as f32 / 40.0)));
-    let cost: Vec<f64> = grid.par_iter().map(|&q| sheet_mismatch(means, q)).collect();
+    let cost: Vec<f64> = grid.par_iter().map(|&q| sheet_mismatch(means, &OpennessShape { q, aniso: [0.0; 2] })).collect();
     let best = (0..grid.len()).min_by(|&a, &b| cost[a].total_cmp(&cost[b])).unwrap_or(0);
-    let (mut lo, mut hi) = (grid[best.saturating_sub(1)], grid[(best + 1).min(grid.len() - 1)]);
-    let phi = 0.618_034f32;
-    for _ in 0..24 {
-        let (a, b) = (hi - phi * (hi - lo), lo + phi * (hi - lo));
-        if sheet_mismatch(means, a) <= sheet_mismatch(means, b) {
-            hi = b;
-        } else {
-            lo = a;
+    let shape_of = |x: &[f64]| OpennessShape { q: (x[0] as f32).clamp(0.0, OPENNESS_Q_MAX), aniso: [(x[1] as f32).clamp(-1.0, 1.0), (x[2] as f32).clamp(-1.0, 1.0)] };
+    let q0 = grid[best] as f64;
+    let mut shape = OpennessShape { q: grid[best], aniso: [0.0; 2] };
+    let opts = NelderMead { max_evals: 300, ..Default::default() };
+    if let Ok(m) = nelder_mead(|x| sheet_mismatch(means, &shape_of(x)), &[q0, 0.0, 0.0], &[0.25 * q0.max(0.1), 0.3, 0.3], &opts) {
+        if m.f.is_finite() && m.f <= cost[best] {
+            shape = shape_of(&m.x);
         }
     }
-    let q = 0.5 * (lo + hi);
-    let q = if sheet_mismatch(means, q) <= cost[best] { q } else { grid[best] };
     means
         .par_iter()
         .map(|m| {
-            let o = open_fraction(m, q);
-            if o > 0.0 { ClothOpenness { o, q } } else { ClothOpenness::default() }
+            let o = open_fraction(m, &shape);
+            if o > 0.0 { ClothOpenness { o, q: shape.q, aniso: shape.aniso } } else { ClothOpenness::default() }
         })
         .collect()
 }
@@ -221,7 +235,7 @@ pub fn openness_report(means: &[Vec<ViewMean>], fitted: &[ClothOpenness], views:
             let Some(p) = OPENNESS_POLAR_DEG.iter().position(|&d| (d - polar_of(w)).abs() < 0.5) else { continue };
             volume[p].0 += (m.transmittance * m.rays) as f64;
             volume[p].1 += m.count as f64;
-            model[p] += (cloth_openness(g, w.z) * m.rays) as f64;
+            model[p] += (cloth_openness(g, w) * m.rays) as f64;
         }
     }
     OpennessReport {
@@ -233,6 +247,7 @@ pub fn openness_report(means: &[Vec<ViewMean>], fitted: &[ClothOpenness], views:
         open_texels: fitted.iter().filter(|g| g.o > 0.0).count(),
         max_o: fitted.iter().map(|g| g.o).fold(0.0, f32::max),
         q: fitted.iter().map(|g| g.q).fold(0.0, f32::max),
+        aniso: fitted.iter().find(|g| g.o > 0.0).map_or([0.0; 2], |g| g.aniso),
         seconds,
     }
 }
@@ -245,7 +260,11 @@ mod tests {
         let mut rng = Rng::new(7, 8, 9);
         openness_views()
             .iter()
-            .map(|w| ViewMean { slant: 1.0 / w.z - 1.0, transmittance: (cloth_openness(g, w.z) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 })
+            .map(|w| {
+                let r2 = w.x * w.x + w.y * w.y;
+                let azimuth = if r2 > 1e-12 { [(w.x * w.x - w.y * w.y) / r2, 2.0 * w.x * w.y / r2] } else { [0.0; 2] };
+                ViewMean { slant: 1.0 / w.z - 1.0, azimuth, transmittance: (cloth_openness(g, *w) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 }
+            })
             .collect()
     }
 
@@ -253,14 +272,15 @@ mod tests {
     fn the_fit_recovers_a_known_openness() {
         // A sheet whose texels share q and differ in o: q and every o come back, exactly
         // without noise and within a few percent with 20% noise per view.
-        for q in [0.0f32, 0.8, 2.5, 9.0] {
-            let truth: Vec<ClothOpenness> = (0..40).map(|j| ClothOpenness { o: if j % 3 == 0 { 0.0 } else { 0.02 * (1 + j % 7) as f32 }, q }).collect();
+        for (q, aniso) in [(0.0f32, [0.0f32; 2]), (0.8, [0.0; 2]), (2.5, [0.6, -0.3]), (9.0, [-0.2, 0.5])] {
+            let truth: Vec<ClothOpenness> = (0..40).map(|j| ClothOpenness { o: if j % 3 == 0 { 0.0 } else { 0.02 * (1 + j % 7) as f32 }, q, aniso }).collect();
             for noise in [0.0f32, 0.2] {
                 let fitted = fit_openness(&truth.iter().map(|g| means(g, noise)).collect::<Vec<_>>());
                 for (t, g) in truth.iter().zip(&fitted) {
                     let tol = if noise > 0.0 { 0.1 } else { 2e-3 };
                     assert!((g.o - t.o).abs() <= tol * t.o + 1e-6, "q {q} noise {noise}: {t:?} → {g:?}");
                     assert!(t.o == 0.0 || (g.q - q).abs() <= tol * q.max(0.5), "q {q} noise {noise}: {t:?} → {g:?}");
+                    assert!(t.o == 0.0 || q == 0.0 || (0..2).all(|i| (g.aniso[i] - aniso[i]).abs() <= 5.0 * tol + 0.02), "q {q} noise {noise}: {t:?} → {g:?}");
                 }
             }
         }
@@ -270,11 +290,11 @@ mod tests {
     fn closed_or_unseen_texels_get_no_openness() {
         assert!(fit_openness(&[]).is_empty());
         assert_eq!(fit_openness(&[means(&ClothOpenness::default(), 0.0)]), vec![ClothOpenness::default()]);
-        let unseen: Vec<ViewMean> = means(&ClothOpenness { o: 0.5, q: 1.0 }, 0.0).into_iter().map(|m| ViewMean { rays: 0.0, count: 0.0, transmittance: 0.0, ..m }).collect();
-        assert_eq!(open_fraction(&unseen, 1.0), 0.0);
+        let unseen: Vec<ViewMean> = means(&ClothOpenness { o: 0.5, q: 1.0, aniso: [0.0; 2] }, 0.0).into_iter().map(|m| ViewMean { rays: 0.0, count: 0.0, transmittance: 0.0, ..m }).collect();
+        assert_eq!(open_fraction(&unseen, &OpennessShape { q: 1.0, aniso: [0.0; 2] }), 0.0);
         // Non-finite input never reaches the record.
-        let bad = vec![ViewMean { slant: 0.0, transmittance: f32::NAN, rays: 1.0, count: 1.0 }, ViewMean { slant: 1.0, transmittance: 0.5, rays: 1.0, count: 1.0 }];
-        let g = fit_openness(&[bad.clone(), means(&ClothOpenness { o: 0.1, q: 1.0 }, 0.0)]);
+        let bad = vec![ViewMean { slant: 0.0, azimuth: [0.0; 2], transmittance: f32::NAN, rays: 1.0, count: 1.0 }, ViewMean { slant: 1.0, azimuth: [1.0, 0.0], transmittance: 0.5, rays: 1.0, count: 1.0 }];
+        let g = fit_openness(&[bad.clone(), means(&ClothOpenness { o: 0.1, q: 1.0, aniso: [0.0; 2] }, 0.0)]);
         assert!(g.iter().all(|g| g.o.is_finite() && g.q.is_finite() && (0.0..=1.0).contains(&g.o)), "{g:?}");
     }
 }

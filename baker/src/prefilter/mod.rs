@@ -31,7 +31,7 @@ use serde::Serialize;
 use fabric_runtime::brdf::MAX_LOBES;
 use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
-use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z, cloth_openness};
+use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
 use fabric_runtime::hybrid::{PackedTransmission, TexelBrdf, decode_frame, encode_frame};
 use fabric_runtime::hybrid::compact;
@@ -485,17 +485,15 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texe
 }
 
 /// A coarse texel's openness from its children's (openness, share): the mean open
-/// fraction matched at normal view (μ = 1) and at μ = ½, where the views the gaps are
-/// seen through lie (a sum of exponentials in 1/μ is not one; beyond μ = ½ the two
-/// differ by little that the gaps still pass).
+/// fraction, and q and (a, b) averaged with the children's open area as weights (exact
+/// for a footprint of one shape, as a bake's level 0 is: it shares the sheet's).
 pub fn coarse_openness(children: &[(ClothOpenness, f32)]) -> ClothOpenness {
-    let at = |mu: f32| children.iter().map(|(g, share)| share * cloth_openness(g, mu)).sum::<f32>();
-    let (o, half) = (at(1.0), at(0.5));
+    let o: f32 = children.iter().map(|(g, share)| share * g.o.clamp(0.0, 1.0)).sum();
     if !(o > 0.0) {
         return ClothOpenness::default();
     }
-    let q = if half > 0.0 { (o / half).ln().clamp(0.0, OPENNESS_Q_MAX) } else { OPENNESS_Q_MAX };
-    ClothOpenness { o: o.min(1.0), q }
+    let mean = |f: &dyn Fn(&ClothOpenness) -> f32| children.iter().map(|(g, share)| share * g.o.clamp(0.0, 1.0) * f(g)).sum::<f32>() / o;
+    ClothOpenness { o: o.min(1.0), q: mean(&|g| g.q.clamp(0.0, OPENNESS_Q_MAX)), aniso: [mean(&|g| g.aniso[0].clamp(-1.0, 1.0)), mean(&|g| g.aniso[1].clamp(-1.0, 1.0))] }
 }
 
 /// The frame (n, t) as a renderer decodes it from the file (octahedral normal, tangent
@@ -514,15 +512,14 @@ mod tests {
 
     #[test]
     fn a_footprint_of_one_openness_keeps_it_and_closed_children_dilute_it() {
-        let g = ClothOpenness { o: 0.2, q: 1.3 };
+        let g = ClothOpenness { o: 0.2, q: 1.3, aniso: [0.4, -0.2] };
         let same = coarse_openness(&[(g, 0.25); 4]);
-        assert!((same.o - g.o).abs() < 1e-6 && (same.q - g.q).abs() < 1e-4, "{same:?}");
+        assert!((same.o - g.o).abs() < 1e-6 && (same.q - g.q).abs() < 1e-5 && (same.aniso[0] - 0.4).abs() < 1e-6 && (same.aniso[1] + 0.2).abs() < 1e-6, "{same:?}");
         let half = coarse_openness(&[(g, 0.25), (g, 0.25), (ClothOpenness::default(), 0.25), (ClothOpenness::default(), 0.25)]);
-        assert!((half.o - 0.1).abs() < 1e-6 && (half.q - g.q).abs() < 1e-4, "{half:?}");
+        assert!((half.o - 0.1).abs() < 1e-6 && (half.q - g.q).abs() < 1e-5 && half.aniso == same.aniso, "{half:?}");
         assert_eq!(coarse_openness(&[(ClothOpenness::default(), 1.0)]), ClothOpenness::default());
-        // Two rates: the mean matches at μ = 1 and μ = ½.
-        let mixed = coarse_openness(&[(ClothOpenness { o: 0.2, q: 0.5 }, 0.5), (ClothOpenness { o: 0.2, q: 4.0 }, 0.5)]);
-        let mean_half = 0.5 * (cloth_openness(&ClothOpenness { o: 0.2, q: 0.5 }, 0.5) + cloth_openness(&ClothOpenness { o: 0.2, q: 4.0 }, 0.5));
-        assert!((cloth_openness(&mixed, 0.5) - mean_half).abs() < 1e-6 && (mixed.o - 0.2).abs() < 1e-6);
+        // Two rates: weighted by open area.
+        let mixed = coarse_openness(&[(ClothOpenness { o: 0.3, q: 1.0, ..g }, 0.5), (ClothOpenness { o: 0.1, q: 3.0, ..g }, 0.5)]);
+        assert!((mixed.o - 0.2).abs() < 1e-6 && (mixed.q - 1.5).abs() < 1e-5, "{mixed:?}");
     }
 }

@@ -466,8 +466,8 @@ impl ClothTransmission {
 pub const OPENNESS_Q_MAX: f32 = 64.0;
 
 /// A texel's openness (format 1.10; runtime/HYBRID_FORMAT.md §6.4): the fraction of
-/// straight rays along −ω_o that cross the cloth untouched, O(μ_o) = o · exp(−q·(1/μ_o − 1))
-/// ([`cloth_openness`]). A renderer shows the light behind the sheet along the same ray
+/// straight rays along −ω_o that cross the cloth untouched,
+/// O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)) ([`cloth_openness`]). A renderer shows the light behind the sheet along the same ray
 /// (the environment map below) times O. It is the delta part of the transmission, which
 /// a directional light is never seen through and which the fitted term cannot hold.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -476,17 +476,26 @@ pub struct ClothOpenness {
     pub o: f32,
     /// q ∈ [0, OPENNESS_Q_MAX]: how fast the gaps close with the slant of the view.
     pub q: f32,
+    /// (a, b) ∈ [−1, 1]²: how that rate depends on the view's azimuth φ_o in the tile
+    /// (a slit between parallel yarns stays open seen along them and closes seen across).
+    pub aniso: [f32; 2],
 }
 
-/// O(μ_o) = o · exp(−q·(1/μ_o − 1)): a slab of open columns closes as its optical depth
-/// grows with the slant path 1/μ, normalized so that O(1) = o. μ_o = |cos| to the tile
-/// normal clamped to [TRANSMISSION_MU_MIN, 1], o to [0, 1], q to [0, OPENNESS_Q_MAX].
+/// O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)): a slab of open
+/// columns closes as its optical depth grows with the slant path 1/μ, at a rate that
+/// depends on the azimuth φ_o (in the tile's frame: an axis, hence 2φ), normalized so
+/// that O = o straight down. μ_o = |ω_o.z| clamped to [TRANSMISSION_MU_MIN, 1], o to
+/// [0, 1], q to [0, OPENNESS_Q_MAX], a and b to [−1, 1], the azimuth factor to [0, 2].
 #[inline]
-pub fn cloth_openness(g: &ClothOpenness, mu_o: f32) -> f32 {
+pub fn cloth_openness(g: &ClothOpenness, wo: Vec3) -> f32 {
     let o = g.o.max(0.0).min(1.0);
     let q = g.q.max(0.0).min(OPENNESS_Q_MAX);
-    let mo = mu_o.abs().max(TRANSMISSION_MU_MIN).min(1.0);
-    o * (-q * (1.0 / mo - 1.0)).exp()
+    let mo = wo.z.abs().max(TRANSMISSION_MU_MIN).min(1.0);
+    let r2 = wo.x * wo.x + wo.y * wo.y;
+    let (c2, s2) = if r2 > 1e-12 { ((wo.x * wo.x - wo.y * wo.y) / r2, 2.0 * wo.x * wo.y / r2) } else { (0.0, 0.0) };
+    let (a, b) = (g.aniso[0].max(-1.0).min(1.0), g.aniso[1].max(-1.0).min(1.0));
+    let rate = (1.0 + a * c2 + b * s2).max(0.0).min(2.0);
+    o * (-q * rate * (1.0 / mo - 1.0)).exp()
 }
 
 /// The attenuation of light crossing the sheet between cosines μ_i, μ_o (to the tile's

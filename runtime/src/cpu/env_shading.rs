@@ -350,7 +350,7 @@ pub fn transmission_env_response(t: &ClothTransmission, f: &ClothFrame, wo: Vec3
     }
     // The map seen straight through the gaps along the view ray: the sharpest level of
     // the chain below the horizon, times the texel's openness O(μ_o).
-    let gap = cloth_openness(&t.gap, wo.z);
+    let gap = cloth_openness(&t.gap, wo);
     if gap > 0.0 {
         r += gap * env.blurred(-wo, 0.0);
     }
@@ -635,7 +635,7 @@ mod tests {
         assert_eq!(transmission_env_response(&t, &f, -Vec3::Z, EnvBudget::SURFACE, &env), Vec3::ZERO);
         // Extreme terms stay finite.
         for (beta, gamma, tau) in [(BETA_MIN, 0.0, 0.0), (BETA_MAX, crate::brdf::GAMMA_MAX, crate::brdf::TAU_MAX), (f32::NAN, f32::NAN, f32::NAN), (-1.0, -1.0, 1e9)] {
-            let t = ClothTransmission { kd: Vec3::splat(K_MAX), lobe: ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }, tau, gap: ClothOpenness { o: beta, q: tau } };
+            let t = ClothTransmission { kd: Vec3::splat(K_MAX), lobe: ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }, tau, gap: ClothOpenness { o: beta, q: tau, aniso: [gamma, -gamma] } };
             for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-4).normalize()] {
                 let r = transmission_env_response(&t, &f, wo, EnvBudget::SURFACE, &env);
                 assert!(r.is_finite() && r.min_element() >= 0.0, "β {beta} γ {gamma} τ {tau} ω_o {wo}: {r}");
@@ -653,12 +653,12 @@ mod tests {
         let constant: Vec<Vec3> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| if below(x, y).z < 0.0 { Vec3::new(2.0, 1.0, 0.5) } else { Vec3::ZERO }).collect();
         let env = PrefilteredEnv::new(&sky.with_texels(constant).unwrap());
         let f = cloth_frame(Vec3::Z, Vec3::X);
-        let gap = ClothOpenness { o: 0.04, q: 1.2 };
+        let gap = ClothOpenness { o: 0.04, q: 1.2, aniso: [0.5, -0.3] };
         let t = ClothTransmission { gap, ..Default::default() };
         assert!(!t.is_zero(), "a texel that is only open lets light through");
         for polar in [0.0f32, 30.0, 60.0, 80.0] {
             let wo = direction_from_angles(polar, 70.0);
-            let expect = Vec3::new(2.0, 1.0, 0.5) * 0.04 * (-1.2 * (1.0 / polar.to_radians().cos().max(0.05) - 1.0)).exp();
+            let expect = Vec3::new(2.0, 1.0, 0.5) * cloth_openness(&gap, wo);
             let r = transmission_env_response(&t, &f, wo, EnvBudget::SURFACE, &env);
             assert!((r - expect).abs().max_element() <= 1e-3 * expect.max_element() + 1e-9, "polar {polar}: {r} vs {expect}");
         }
@@ -668,7 +668,7 @@ mod tests {
         let env = PrefilteredEnv::new(&sky.with_texels(half).unwrap());
         let toward = transmission_env_response(&t, &f, direction_from_angles(40.0, 0.0), EnvBudget::SURFACE, &env);
         let away = transmission_env_response(&t, &f, direction_from_angles(40.0, 180.0), EnvBudget::SURFACE, &env);
-        let open = cloth_openness(&gap, 40f32.to_radians().cos());
+        let open = cloth_openness(&gap, direction_from_angles(40.0, 0.0));
         assert!((toward.x - open).abs() < 0.05 * open && away.x < 0.05 * open, "{toward} / {away} vs {open}");
         // No openness, no term: the scattered part alone (none here).
         assert_eq!(transmission_env_response(&ClothTransmission::default(), &f, Vec3::Z, EnvBudget::SURFACE, &env), Vec3::ZERO);

@@ -7,7 +7,7 @@
 //! | [`BrdfHeader`]     | 16    | k_d (3×f16), η, a (f16), lobe count, first lobe       |
 //! | [`PackedLobe`]     | 16    | n (oct 2×snorm16), t (angle 16), k (3×f16), β, γ (f16)     |
 //! | [`ClusteredTexel`] | 8     | n (oct 2×snorm16), t (angle 16), cluster index (u16)       |
-//! | [`PackedTransmission`] | 24 | k_dt (3×f16), k_t (3×f16), β_t, γ_t, τ (f16), openness o, q (2×f16, format 1.10), 1 reserved (format 1.3) |
+//! | [`PackedTransmission`] | 24 | k_dt (3×f16), k_t (3×f16), β_t, γ_t, τ (f16) (format 1.3); openness o, q (2×f16), a, b (2×snorm8) (format 1.10) |
 //! | [`PackedViewTilt`] | 12 | B, the visible normal's 2×2 slope matrix, row-major (4×f16); c, the log-visibility slope (2×f16) (format 1.4) |
 //!
 //! A table is a header array plus a lobe array; header h uses lobes
@@ -18,7 +18,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
 use super::error::{ModelError, TableKind};
-use super::packing::{f16_bits, f16_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
+use super::packing::{f16_bits, f16_value, snorm8, snorm8_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
 use crate::brdf::visible_normal::ViewTilt;
 use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, ETA_MAX, OPENNESS_Q_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
@@ -83,20 +83,20 @@ pub struct PackedTransmission {
     pub gamma: u16,
     /// τ, f16 bits.
     pub tau: u16,
-    /// The openness's o and q, f16 bits (format 1.10: these were reserved, 0, before).
+    /// The openness's o and q, f16 bits, and its azimuth terms a | b << 8, snorm8
+    /// (format 1.10: these were reserved, 0, before).
     pub gap: [u16; 2],
-    /// Must be 0.
-    pub reserved: u16,
+    pub gap_aniso: u16,
 }
 
 impl PackedTransmission {
     pub fn new(t: &ClothTransmission) -> PackedTransmission {
-        PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma), tau: f16_bits(t.tau), gap: [f16_bits(t.gap.o), f16_bits(t.gap.q)], reserved: 0 }
+        PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma), tau: f16_bits(t.tau), gap: [f16_bits(t.gap.o), f16_bits(t.gap.q)], gap_aniso: u16::from_le_bytes([snorm8(t.gap.aniso[0]), snorm8(t.gap.aniso[1])]) }
     }
 
     pub fn decode(&self) -> ClothTransmission {
         let v = |b: [u16; 3]| Vec3::new(f16_value(b[0]), f16_value(b[1]), f16_value(b[2]));
-        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]) } }
+        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]), aniso: self.gap_aniso.to_le_bytes().map(snorm8_value) } }
     }
 
     /// Checks one record (texel `texel` of level `level`): finite k's ≥ 0, β and γ in
@@ -124,9 +124,6 @@ impl PackedTransmission {
         }
         if !(t.gap.q >= 0.0 && t.gap.q <= OPENNESS_Q_MAX) {
             return Err(bad("openness q", t.gap.q, "[0, 64]"));
-        }
-        if self.reserved != 0 {
-            return Err(bad("reserved", f32::from(self.reserved), "0"));
         }
         Ok(())
     }

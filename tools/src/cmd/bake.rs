@@ -409,7 +409,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         if let Some(o) = &t.openness {
             let at = |v: &[f64]| v.iter().map(|x| format!("{:.2}%", 100.0 * x)).collect::<Vec<_>>().join("/");
             let polar = o.polar_deg.iter().map(|d| format!("{d:.0}")).collect::<Vec<_>>().join("/");
-            println!("  gaps between yarns: {} of {} texels open (largest o {:.3}, q {:.2}); rays that cross at polar {polar}°: volume {}, model {} ({:.1} s)", o.open_texels, r.dims[0] * r.dims[1], o.max_o, o.q, at(&o.volume), at(&o.model), o.seconds);
+            println!("  gaps between yarns: {} of {} texels open (largest o {:.3}, q {:.2}, azimuth terms {:.2}, {:.2}); rays that cross at polar {polar}°: volume {}, model {} ({:.1} s)", o.open_texels, r.dims[0] * r.dims[1], o.max_o, o.q, o.aniso[0], o.aniso[1], at(&o.volume), at(&o.model), o.seconds);
         }
         for p in &t.problems {
             println!("warning: transmission of cluster {} ({} texels): {}", p.cluster, p.texels, p.problem);
