@@ -73,6 +73,10 @@ pub struct LevelStats {
     pub flyaway_path_gain: Option<Vec<f32>>,
     /// Bytes of the transmission records (0: the level is reflection only).
     pub transmission_bytes: u64,
+    /// The openness straight down, o, over the texels, and the fraction of texels with
+    /// o > 0 (format 1.10; None: reflection only).
+    pub openness: Option<Range>,
+    pub open_texels: Option<f64>,
     /// Bytes of the view tilt records (0: none, as at level 0).
     pub view_tilt_bytes: u64,
     pub fit_error: Option<f32>,
@@ -190,6 +194,12 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         st.mean_lobes = st.lobes_per_texel.mean;
         st.max_lobes = st.lobes_per_texel.max as u32;
         st.transmission_bytes = level.transmission_bytes();
+        if let Some(t) = &level.transmission {
+            let mut o = Acc::default();
+            t.iter().for_each(|r| o.add(r.decode().gap.o));
+            st.openness = Some(o.range());
+            st.open_texels = Some(t.iter().filter(|r| r.decode().gap.o > 0.0).count() as f64 / t.len().max(1) as f64);
+        }
         st.view_tilt_bytes = level.view_tilt_bytes();
         st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes;
         levels.push(st);

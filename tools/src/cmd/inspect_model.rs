@@ -77,6 +77,9 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
         let _ = writeln!(s, "    k (luminance) {}   beta {}   gamma {} (off for {:.1}% of lobes)", range(&l.k_luminance), range(&l.beta), range(&l.gamma), 100.0 * l.gamma_off_fraction);
         if l.transmission_bytes > 0 {
             let _ = writeln!(s, "    transmission: one term per texel (BSDF); {}", mib(l.transmission_bytes));
+            if let (Some(o), Some(f)) = (&l.openness, l.open_texels) {
+                let _ = writeln!(s, "    openness straight down (the gaps between yarns): {} over texels, {:.1}% of texels open", range(o), 100.0 * f);
+            }
         }
         if l.flyaway_nodes > 0 || l.flyaway_bytes > 0 {
             let _ = writeln!(s, "    flyaways: {} voxels in {} columns, longest list {}, alpha {}; {}", l.flyaway_nodes, l.flyaway_columns, l.flyaway_longest_list, range(&l.flyaway_alpha), mib(l.flyaway_bytes));
