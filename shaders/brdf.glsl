@@ -330,6 +330,12 @@ struct ClothTransmission {
     ClothOpenness gap;
 };
 
+// (cos 2phi, sin 2phi) of w's azimuth in the tile: an axis's, (0, 0) straight up or down.
+vec2 cloth_azimuth_axis(vec3 w) {
+    float r2 = w.x * w.x + w.y * w.y;
+    return r2 > 1e-12 ? vec2(w.x * w.x - w.y * w.y, 2.0 * w.x * w.y) / r2 : vec2(0.0);
+}
+
 // o exp(-q (1 + a cos 2phi + b sin 2phi) (1/mu_o - 1)), mu_o = |wo.z| clamped to
 // [0.05, 1], phi wo's azimuth in the tile, o to [0, 1], q to [0, 64], a, b to [-1, 1],
 // the azimuth factor to [0, 2]: the map behind the sheet seen through the gaps, per unit
@@ -338,15 +344,9 @@ float cloth_openness(ClothOpenness g, vec3 wo) {
     float o = min(max(g.o, 0.0), 1.0);
     float q = min(max(g.q, 0.0), CLOTH_OPENNESS_Q_MAX);
     float mo = min(max(abs(wo.z), CLOTH_TRANSMISSION_MU_MIN), 1.0);
-    float r2 = wo.x * wo.x + wo.y * wo.y;
-    float c2 = 0.0;
-    float s2 = 0.0;
-    if (r2 > 1e-12) {
-        c2 = (wo.x * wo.x - wo.y * wo.y) / r2;
-        s2 = 2.0 * wo.x * wo.y / r2;
-    }
+    vec2 cs = cloth_azimuth_axis(wo);
     vec2 ab = min(max(g.aniso, vec2(-1.0)), vec2(1.0));
-    float rate = min(max(1.0 + ab.x * c2 + ab.y * s2, 0.0), 2.0);
+    float rate = min(max(1.0 + ab.x * cs.x + ab.y * cs.y, 0.0), 2.0);
     return o * exp(-q * rate * (1.0 / mo - 1.0));
 }
 

@@ -22,7 +22,7 @@
 //! along them) and o per texel, is fitted to the mean transmittance per view
 //! ([`fit_openness`]).
 
-use fabric_runtime::brdf::{ClothOpenness, OPENNESS_Q_MAX, cloth_openness};
+use fabric_runtime::brdf::{ClothOpenness, OPENNESS_Q_MAX, cloth_azimuth_axis, cloth_openness};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::HybridModel;
 use fabric_runtime::scene::{Light, Ray, direction_from_angles};
@@ -92,8 +92,8 @@ pub struct OpennessReport {
 /// traces through texel footprints at that view, their transmittance through the sheet
 /// (the whole volume: `measure` without a mask) and through the model's level-0 flyaways
 /// in front of its surface, credited to the texel `model` shows along each (rays that
-/// miss the model's surface are dropped). `rays` per texel per view (straight down: `OPENNESS_AZIMUTHS` times as
-/// many); deterministic per `seed`.
+/// miss the model's surface are dropped). `rays` per texel per view (straight down:
+/// `OPENNESS_AZIMUTHS` times as many); deterministic per `seed`.
 pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Vec3], rays: u32, seed: u64) -> Vec<Vec<ViewMean>> {
     let (nx, ny) = measure.texels();
     let texels = nx * ny;
@@ -108,7 +108,7 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
         // Straight down is one view where each other polar angle has OPENNESS_AZIMUTHS:
         // as many rays as a ring, so that the fit weighs the angles alike.
         let rays = if wo.z >= 1.0 - 1e-6 { rays * OPENNESS_AZIMUTHS as u32 } else { rays };
-        // (texel hit, transmittance) of every ray of this view.
+        // (texel hit, the volume's transmittance, the model's flyaways') of every ray.
         let hits: Vec<(u32, f32, f32)> = (0..texels)
             .into_par_iter()
             .flat_map_iter(|texel| {
@@ -127,8 +127,7 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
             })
             .collect();
         let slant = 1.0 / wo.z - 1.0;
-        let r2 = wo.x * wo.x + wo.y * wo.y;
-        let azimuth = if r2 > 1e-12 { [(wo.x * wo.x - wo.y * wo.y) / r2, 2.0 * wo.x * wo.y / r2] } else { [0.0, 0.0] };
+        let azimuth = cloth_azimuth_axis(wo);
         for (hit, t, fly) in hits {
             let m = &mut out[hit as usize][v];
             m.transmittance += t;
@@ -260,11 +259,7 @@ mod tests {
         let mut rng = Rng::new(7, 8, 9);
         openness_views()
             .iter()
-            .map(|w| {
-                let r2 = w.x * w.x + w.y * w.y;
-                let azimuth = if r2 > 1e-12 { [(w.x * w.x - w.y * w.y) / r2, 2.0 * w.x * w.y / r2] } else { [0.0; 2] };
-                ViewMean { slant: 1.0 / w.z - 1.0, azimuth, transmittance: (cloth_openness(g, *w) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 }
-            })
+            .map(|w| ViewMean { slant: 1.0 / w.z - 1.0, azimuth: cloth_azimuth_axis(*w), transmittance: (cloth_openness(g, *w) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 })
             .collect()
     }
 

@@ -467,9 +467,10 @@ pub const OPENNESS_Q_MAX: f32 = 64.0;
 
 /// A texel's openness (format 1.10; runtime/HYBRID_FORMAT.md §6.4): the fraction of
 /// straight rays along −ω_o that cross the cloth untouched,
-/// O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)) ([`cloth_openness`]). A renderer shows the light behind the sheet along the same ray
-/// (the environment map below) times O. It is the delta part of the transmission, which
-/// a directional light is never seen through and which the fitted term cannot hold.
+/// O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)) ([`cloth_openness`]).
+/// A renderer shows the light behind the sheet along the same ray (the environment map
+/// below) times O. It is the delta part of the transmission, which a directional light
+/// is never seen through and which the fitted term cannot hold.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ClothOpenness {
     /// o ∈ [0, 1]: the open fraction seen straight down.
@@ -479,6 +480,14 @@ pub struct ClothOpenness {
     /// (a, b) ∈ [−1, 1]²: how that rate depends on the view's azimuth φ_o in the tile
     /// (a slit between parallel yarns stays open seen along them and closes seen across).
     pub aniso: [f32; 2],
+}
+
+/// (cos 2φ, sin 2φ) of w's azimuth in the tile, ((x² − y²)/(x² + y²), 2xy/(x² + y²)):
+/// an axis's azimuth, the same for w and −w; (0, 0) straight up or down.
+#[inline]
+pub fn cloth_azimuth_axis(w: Vec3) -> [f32; 2] {
+    let r2 = w.x * w.x + w.y * w.y;
+    if r2 > 1e-12 { [(w.x * w.x - w.y * w.y) / r2, 2.0 * w.x * w.y / r2] } else { [0.0, 0.0] }
 }
 
 /// O(ω_o) = o · exp(−q · (1 + a·cos 2φ_o + b·sin 2φ_o) · (1/μ_o − 1)): a slab of open
@@ -491,8 +500,7 @@ pub fn cloth_openness(g: &ClothOpenness, wo: Vec3) -> f32 {
     let o = g.o.max(0.0).min(1.0);
     let q = g.q.max(0.0).min(OPENNESS_Q_MAX);
     let mo = wo.z.abs().max(TRANSMISSION_MU_MIN).min(1.0);
-    let r2 = wo.x * wo.x + wo.y * wo.y;
-    let (c2, s2) = if r2 > 1e-12 { ((wo.x * wo.x - wo.y * wo.y) / r2, 2.0 * wo.x * wo.y / r2) } else { (0.0, 0.0) };
+    let [c2, s2] = cloth_azimuth_axis(wo);
     let (a, b) = (g.aniso[0].max(-1.0).min(1.0), g.aniso[1].max(-1.0).min(1.0));
     let rate = (1.0 + a * c2 + b * s2).max(0.0).min(2.0);
     o * (-q * rate * (1.0 / mo - 1.0)).exp()

@@ -295,3 +295,25 @@ fn transmission_is_reciprocal_and_peaks_straight_through() {
     let r = cloth_transmission_response(&t, &f, wi, -wi);
     assert!((r - cloth_transmission(&t, &f, wi, -wi) * 0.9f32.min(-wi.z).max(-wi.z)).abs().max_element() < 1e-6);
 }
+
+/// The openness (format 1.10): o straight down, closing with the slant at a rate its
+/// azimuth terms set, an axis's (ω and −ω alike), finite for any record.
+#[test]
+fn openness_closes_with_the_slant_and_by_azimuth() {
+    let g = ClothOpenness { o: 0.3, q: 2.0, aniso: [1.0, 0.0] };
+    assert_eq!(cloth_openness(&g, Vec3::Z), 0.3);
+    let (along_x, along_y) = (Vec3::new(1.0, 0.0, 1.0).normalize(), Vec3::new(0.0, 1.0, 1.0).normalize());
+    let slant = 2f32.sqrt() - 1.0;
+    assert!((cloth_openness(&g, along_x) - 0.3 * (-2.0 * 2.0 * slant).exp()).abs() < 1e-6, "rate 2 along x");
+    assert!((cloth_openness(&g, along_y) - 0.3).abs() < 1e-6, "rate 0 along y: a slit seen along its length");
+    assert_eq!(cloth_azimuth_axis(along_x), cloth_azimuth_axis(Vec3::new(-1.0, 0.0, 1.0).normalize()));
+    assert_eq!(cloth_azimuth_axis(Vec3::Z), [0.0, 0.0]);
+    let iso = ClothOpenness { aniso: [0.0; 2], ..g };
+    assert!(cloth_openness(&iso, along_x) > cloth_openness(&iso, Vec3::new(2.0, 0.0, 1.0).normalize()));
+    for bad in [ClothOpenness { o: f32::NAN, q: f32::NAN, aniso: [f32::NAN; 2] }, ClothOpenness { o: 5.0, q: -1.0, aniso: [9.0, -9.0] }] {
+        for w in [Vec3::Z, along_x, Vec3::new(1.0, 0.0, 1e-9)] {
+            let v = cloth_openness(&bad, w);
+            assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{bad:?} {w}: {v}");
+        }
+    }
+}
