@@ -371,10 +371,10 @@ impl BakeOptions {
         if !(self.fit.eta >= ETA_MIN_FIT && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
             return bad("eta", self.fit.eta.to_string(), "must be in [1.01, 4] (at η = 1 the Fresnel factor, and every lobe with it, is zero)");
         }
-        if let Some(t) = &self.transmission {
-            if t.openness_rays > 256 {
-                return bad("openness_rays", t.openness_rays.to_string(), "rays per texel per view must be in 0..=256 (0: no openness)");
-            }
+        if let Some(t) = &self.transmission
+            && t.openness_rays > 256
+        {
+            return bad("openness_rays", t.openness_rays.to_string(), "rays per texel per view must be in 0..=256 (0: no openness)");
         }
         Ok(())
     }
@@ -777,21 +777,21 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // 5b. A BSDF's gaps between yarns: what a light behind is never seen through (no
     // training pair shows it), measured on the whole volume along the probe's rays, behind
     // the flyaways just fitted.
-    if let (Some(to), Some(report), Some(records)) = (&options.transmission, transmission_report.as_mut(), model.levels[0].transmission.clone()) {
-        if to.openness_rays > 0 {
-            let t = Instant::now();
-            let views = openness_views();
-            let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
-            let full = MeasureScene::new(volume, options.lookup, Some(&heights), None)?;
-            let means = measure_openness(&model, &full, &views, to.openness_rays, mix64(options.seed ^ 0x6761_7073));
-            let gaps = fit_openness(&means);
-            bar.finish();
-            model.levels[0].transmission = Some(records.iter().zip(&gaps).map(|(r, &gap)| PackedTransmission::new(&ClothTransmission { gap, ..r.decode() })).collect());
-            let seconds = t.elapsed().as_secs_f64();
-            report.openness = Some(openness_report(&means, &gaps, &views, to.openness_rays, seconds));
-            report.fit_seconds += seconds;
-            stage("transmission: gaps", t);
-        }
+    if let (Some(to), Some(report), Some(records)) = (&options.transmission, transmission_report.as_mut(), model.levels[0].transmission.clone())
+        && to.openness_rays > 0
+    {
+        let t = Instant::now();
+        let views = openness_views();
+        let bar = begin_stage(progress, "transmission: the gaps between yarns", 1);
+        let full = MeasureScene::new(volume, options.lookup, Some(&heights), None)?;
+        let means = measure_openness(&model, &full, &views, to.openness_rays, mix64(options.seed ^ 0x6761_7073));
+        let gaps = fit_openness(&means);
+        bar.finish();
+        model.levels[0].transmission = Some(records.iter().zip(&gaps).map(|(r, &gap)| PackedTransmission::new(&ClothTransmission { gap, ..r.decode() })).collect());
+        let seconds = t.elapsed().as_secs_f64();
+        report.openness = Some(openness_report(&means, &gaps, &views, to.openness_rays, seconds));
+        report.fit_seconds += seconds;
+        stage("transmission: gaps", t);
     }
     model.validate()?;
     // 6. The mip chain.

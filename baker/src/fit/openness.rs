@@ -209,10 +209,11 @@ pub fn fit_openness(means: &[Vec<ViewMean>]) -> Vec<ClothOpenness> {
     let q0 = grid[best] as f64;
     let mut shape = OpennessShape { q: grid[best], aniso: [0.0; 2] };
     let opts = NelderMead { max_evals: 300, ..Default::default() };
-    if let Ok(m) = nelder_mead(|x| sheet_mismatch(means, &shape_of(x)), &[q0, 0.0, 0.0], &[0.25 * q0.max(0.1), 0.3, 0.3], &opts) {
-        if m.f.is_finite() && m.f <= cost[best] {
-            shape = shape_of(&m.x);
-        }
+    if let Ok(m) = nelder_mead(|x| sheet_mismatch(means, &shape_of(x)), &[q0, 0.0, 0.0], &[0.25 * q0.max(0.1), 0.3, 0.3], &opts)
+        && m.f.is_finite()
+        && m.f <= cost[best]
+    {
+        shape = shape_of(&m.x);
     }
     means
         .par_iter()
