@@ -22,7 +22,7 @@
 //! along them) and o per texel, is fitted to the mean transmittance per view
 //! ([`fit_openness`]).
 
-use fabric_runtime::brdf::{ClothOpenness, OPENNESS_Q_MAX, cloth_azimuth_axis, cloth_openness};
+use fabric_runtime::brdf::{ClothOpenness, OPENNESS_Q_MAX, cloth_openness};
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::HybridModel;
 use fabric_runtime::scene::{Light, Ray, direction_from_angles};
@@ -53,9 +53,8 @@ pub fn openness_views() -> Vec<Vec3> {
 /// One texel's measurement at one view.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ViewMean {
-    /// 1/μ_o − 1 (the slant of the view) and (cos 2φ_o, sin 2φ_o) (its azimuth's axis).
-    pub slant: f32,
-    pub azimuth: [f32; 2],
+    /// The view ω_o.
+    pub view: Vec3,
     /// What the surface must let through: Σ T_volume / Σ T_flyaways over the rays
     /// credited to the texel (the volume's transmittance, flyaways and all, over what the
     /// model's flyaways in front already take away), at most 1.
@@ -126,8 +125,6 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
                 })
             })
             .collect();
-        let slant = 1.0 / wo.z - 1.0;
-        let azimuth = cloth_azimuth_axis(wo);
         for (hit, t, fly) in hits {
             let m = &mut out[hit as usize][v];
             m.transmittance += t;
@@ -136,8 +133,7 @@ pub fn measure_openness(model: &HybridModel, measure: &MeasureScene, views: &[Ve
         }
         for per_texel in out.iter_mut() {
             let m = &mut per_texel[v];
-            m.slant = slant;
-            m.azimuth = azimuth;
+            m.view = wo;
             m.transmittance = if m.rays > 0.0 { (m.transmittance / m.rays).min(1.0) } else { 0.0 };
         }
     }
@@ -153,10 +149,9 @@ pub struct OpennessShape {
 }
 
 impl OpennessShape {
-    /// O / o for a view (`cloth_openness`'s factor, from the view's slant and azimuth).
+    /// O / o for a view: the runtime's `cloth_openness` of an open texel.
     fn falloff(&self, m: &ViewMean) -> f64 {
-        let rate = (1.0 + self.aniso[0] * m.azimuth[0] + self.aniso[1] * m.azimuth[1]).clamp(0.0, 2.0);
-        (-(self.q * rate * m.slant) as f64).exp()
+        cloth_openness(&ClothOpenness { o: 1.0, q: self.q, aniso: self.aniso }, m.view) as f64
     }
 }
 
@@ -260,7 +255,7 @@ mod tests {
         let mut rng = Rng::new(7, 8, 9);
         openness_views()
             .iter()
-            .map(|w| ViewMean { slant: 1.0 / w.z - 1.0, azimuth: cloth_azimuth_axis(*w), transmittance: (cloth_openness(g, *w) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 })
+            .map(|w| ViewMean { view: *w, transmittance: (cloth_openness(g, *w) * (1.0 + noise * (rng.next_f32() - 0.5))).max(0.0), rays: 8.0, count: 8.0 })
             .collect()
     }
 
@@ -289,7 +284,7 @@ mod tests {
         let unseen: Vec<ViewMean> = means(&ClothOpenness { o: 0.5, q: 1.0, aniso: [0.0; 2] }, 0.0).into_iter().map(|m| ViewMean { rays: 0.0, count: 0.0, transmittance: 0.0, ..m }).collect();
         assert_eq!(open_fraction(&unseen, &OpennessShape { q: 1.0, aniso: [0.0; 2] }), 0.0);
         // Non-finite input never reaches the record.
-        let bad = vec![ViewMean { slant: 0.0, azimuth: [0.0; 2], transmittance: f32::NAN, rays: 1.0, count: 1.0 }, ViewMean { slant: 1.0, azimuth: [1.0, 0.0], transmittance: 0.5, rays: 1.0, count: 1.0 }];
+        let bad = vec![ViewMean { view: Vec3::Z, transmittance: f32::NAN, rays: 1.0, count: 1.0 }, ViewMean { view: Vec3::new(1.0, 0.0, 1.0).normalize(), transmittance: 0.5, rays: 1.0, count: 1.0 }];
         let g = fit_openness(&[bad.clone(), means(&ClothOpenness { o: 0.1, q: 1.0, aniso: [0.0; 2] }, 0.0)]);
         assert!(g.iter().all(|g| g.o.is_finite() && g.q.is_finite() && (0.0..=1.0).contains(&g.o)), "{g:?}");
     }
