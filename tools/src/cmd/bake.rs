@@ -116,7 +116,7 @@ pub struct BakeArgs {
     pub shadows: bool,
     /// Weigh every training pair alike in the fit, instead of each by the inverse of its
     /// image's brightness (each pair's error relative to itself, as held-out views count;
-    /// baker/FIT_MEASUREMENTS.md measures both).
+    /// baker/FIT_MEASUREMENTS.md measures both). With `--bsdf`, the backlit pairs too.
     #[arg(long)]
     pub unweighted_pairs: bool,
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).

@@ -45,7 +45,7 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
     let _ = writeln!(s, "  tile: origin ({}, {}), size {} x {}, top plane z = {}, height scale {}, flyaway voxel depth {}", m.tile_origin[0], m.tile_origin[1], m.tile_size[0], m.tile_size[1], m.top_z, m.height_scale, m.voxel_depth);
     let _ = writeln!(s, "  depth below the top plane (min / mean / max): {}", range(&m.depth));
     let b = m.source_bbox;
-    let _ = writeln!(s, "  source: bbox ({}, {}, {}) .. ({}, {}, {}), {}x{}x{} voxels, seed {}", b[0], b[1], b[2], b[3], b[4], b[5], m.source_dims[0], m.source_dims[1], m.source_dims[2], m.seed);
+    let _ = writeln!(s, "  source: bbox ({}, {}, {}) .. ({}, {}, {}), {}x{}x{} voxels; bake seed {}", b[0], b[1], b[2], b[3], b[4], b[5], m.source_dims[0], m.source_dims[1], m.source_dims[2], m.seed);
     if !m.note.is_empty() {
         let _ = writeln!(s, "  note: {}", m.note);
     }
