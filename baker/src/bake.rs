@@ -80,7 +80,8 @@ pub struct BakeOptions {
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o).
     pub volumetric: bool,
     pub surface_mask: SurfaceMask,
-    /// K starts at `k_min` and doubles up to `k_max` (Algorithm 1).
+    /// K starts at `k_min` and doubles up to `k_max` (Algorithm 1); [`K_AUTO`] (0) for
+    /// either is [`auto_k`] of the model's texel count.
     pub k_min: usize,
     pub k_max: usize,
     /// Stop when the training-image error (relative RMSE) is below δ...
@@ -162,8 +163,14 @@ impl Default for BakeOptions {
             // 28.3%, satin 44.7% vs 42.2%, though it mends the mirror views' fall-off.
             volumetric: false,
             surface_mask: SurfaceMask::AboveSurface,
-            k_min: 4,
-            k_max: 32,
+            // One round at about 32 texels per cluster, at most 128 (`auto_k`). Measured on
+            // the 64² presets (baker/FIT_MEASUREMENTS.md, "How many clusters"): the
+            // doubling from 4 stopped twill at 32, satin and felt at 8, where a doubling
+            // gained less than `min_gain`; at 128 the held-out error is twill 16.1 →
+            // 14.6%, satin 30.6 → 29.2%, felt 22.7 → 22.6%, and one round of 128 costs
+            // less than the doubling to 128.
+            k_min: K_AUTO,
+            k_max: K_AUTO,
             delta: 0.05,
             min_gain: 0.03,
             // Lommel–Seeliger's diffuse law: held-out twill 26.4 → 25.3%, satin unchanged
@@ -343,7 +350,38 @@ pub struct Bake {
     pub predictions: Vec<Image>,
 }
 
+/// `k_min`/`k_max` that ask for [`auto_k`].
+pub const K_AUTO: usize = 0;
+
+/// Texels per cluster of [`auto_k`].
+pub const AUTO_K_TEXELS: usize = 32;
+
+/// Bounds of [`auto_k`]: below 4 the clusters are too few to tell warp from weft; above 128
+/// the round's fitting time (Nelder–Mead and the frame search per cluster) passes the
+/// doubling's to 32 threefold (64² twill: 194 s against 64 s for the round of 32).
+pub const AUTO_K_RANGE: [usize; 2] = [4, 128];
+
+/// The default cluster count for `texels` texels: the largest power of two at most
+/// texels / [`AUTO_K_TEXELS`], within [`AUTO_K_RANGE`] (and at most `texels`).
+pub fn auto_k(texels: usize) -> usize {
+    let target = (texels / AUTO_K_TEXELS).max(1);
+    let pow2 = 1usize << (usize::BITS - 1 - target.leading_zeros());
+    pow2.clamp(AUTO_K_RANGE[0], AUTO_K_RANGE[1]).min(texels.max(1))
+}
+
 impl BakeOptions {
+    /// (k_min, k_max) for a model of `texels` texels, [`K_AUTO`] resolved by [`auto_k`].
+    pub fn k_range(&self, texels: usize) -> (usize, usize) {
+        let auto = auto_k(texels);
+        // An explicit bound wins over the automatic other one.
+        match (self.k_min, self.k_max) {
+            (K_AUTO, K_AUTO) => (auto, auto),
+            (K_AUTO, hi) => (auto.min(hi), hi),
+            (lo, K_AUTO) => (lo, auto.max(lo)),
+            (lo, hi) => (lo, hi),
+        }
+    }
+
     pub fn validate(&self) -> Result<(), BakeError> {
         let bad = |name, value: String, reason: &str| Err(BakeError::BadOption { name, value, reason: reason.into() });
         if self.spp < 2 || self.spp > 1 << 16 {
@@ -352,8 +390,8 @@ impl BakeOptions {
         if self.probe_rays == 0 || self.probe_rays > 64 {
             return bad("probe_rays", self.probe_rays.to_string(), "must be in 1..=64");
         }
-        if self.k_min == 0 || self.k_max < self.k_min || self.k_max > 65536 {
-            return bad("k", format!("{}..{}", self.k_min, self.k_max), "need 1 ≤ k_min ≤ k_max ≤ 65536");
+        if self.k_max > 65536 || self.k_min > 65536 || (self.k_min != K_AUTO && self.k_max != K_AUTO && self.k_max < self.k_min) {
+            return bad("k", format!("{}..{}", self.k_min, self.k_max), "need k_min ≤ k_max ≤ 65536 (0: auto)");
         }
         if !(self.delta >= 0.0 && self.delta.is_finite() && self.min_gain >= 0.0 && self.min_gain < 1.0) {
             return bad("delta/min_gain", format!("{}/{}", self.delta, self.min_gain), "δ ≥ 0 and 0 ≤ min_gain < 1");
@@ -562,7 +600,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // per-texel one.
     let frame_fit = options.frame_fit.clone().map(|f| FrameFitOptions { per_lobe: f.per_lobe && options.per_texel_ridge.is_some(), ..f });
     let mut best: Option<Round> = None;
-    let mut k = options.k_min.min(texels);
+    let (k_min, k_max) = options.k_range(texels);
+    let mut k = k_min.min(texels);
     let t_fit = Instant::now();
     loop {
         let t_round = Instant::now();
@@ -643,10 +682,10 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         if improved {
             best = Some((error, cluster.clone(), fits, offsets, predictions));
         }
-        if error < options.delta.max(training.noise) || gain < options.min_gain || k >= options.k_max.min(texels) {
+        if error < options.delta.max(training.noise) || gain < options.min_gain || k >= k_max.min(texels) {
             break;
         }
-        k = (2 * k).min(options.k_max).min(texels);
+        k = (2 * k).min(k_max).min(texels);
     }
     stage("clustering and fitting", t_fit);
     let (cluster_error, clusters, fits, offsets, predictions) = best.expect("at least one round");
@@ -1008,4 +1047,39 @@ fn split_errors(predictions: &[Image], training: &TrainingImages) -> (Vec<(Strin
     }
     let rel = |a: [f64; 2]| if a[1] > 0.0 { (a[0] / a[1]).sqrt() } else { 0.0 };
     (by_kind.into_iter().map(|(k, d, r)| (k, if r > 0.0 { (d / r).sqrt() } else { 0.0 })).collect(), rel(g), rel(ng))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_automatic_k_keeps_about_32_texels_per_cluster_within_its_range() {
+        // 64² → 128 (the measured default), 128² and larger at the cap, small models fewer.
+        assert_eq!(auto_k(64 * 64), 128);
+        assert_eq!(auto_k(512 * 512), 128);
+        assert_eq!(auto_k(32 * 32), 32);
+        assert_eq!(auto_k(33 * 17), 16);
+        assert_eq!(auto_k(40), 4);
+        // Never more clusters than texels.
+        assert_eq!(auto_k(3), 3);
+        for texels in 1..5000 {
+            let k = auto_k(texels);
+            assert!(k.is_power_of_two() || k == texels, "{texels}: {k}");
+            assert!(k <= texels.max(1) && k <= AUTO_K_RANGE[1], "{texels}: {k}");
+        }
+    }
+
+    #[test]
+    fn an_explicit_k_bound_wins_over_the_automatic_other() {
+        let o = |k_min, k_max| BakeOptions { k_min, k_max, ..Default::default() };
+        assert_eq!(o(K_AUTO, K_AUTO).k_range(4096), (128, 128));
+        assert_eq!(o(4, 32).k_range(4096), (4, 32));
+        assert_eq!(o(K_AUTO, 8).k_range(4096), (8, 8));
+        assert_eq!(o(4, K_AUTO).k_range(4096), (4, 128));
+        assert_eq!(o(256, K_AUTO).k_range(4096), (256, 256));
+        assert!(o(8, 4).validate().is_err());
+        assert!(o(K_AUTO, K_AUTO).validate().is_ok());
+        assert!(o(K_AUTO, 1 << 20).validate().is_err());
+    }
 }

@@ -77,10 +77,13 @@ pub struct BakeArgs {
     /// Samples per texel of each training rendering.
     #[arg(long, default_value_t = 32)]
     pub spp: u32,
-    /// K doubles from --k-min to --k-max while the training error falls.
-    #[arg(long, default_value_t = 4)]
+    /// K doubles from --k-min to --k-max while the training error falls by at least 3% a
+    /// doubling. 0 (the default): about 32 texels per cluster, a power of two from 4 to 128
+    /// (one round at 64² and larger; baker/FIT_MEASUREMENTS.md, "How many clusters").
+    #[arg(long, default_value_t = 0)]
     pub k_min: usize,
-    #[arg(long, default_value_t = 32)]
+    /// The largest K (0: as --k-min's default).
+    #[arg(long, default_value_t = 0)]
     pub k_max: usize,
     /// Stop doubling K below this training error (relative RMSE).
     #[arg(long, default_value_t = 0.05)]
