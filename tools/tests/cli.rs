@@ -224,12 +224,13 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--openness-rays", "100000"], "openness_rays"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
         (&["bake", "/nonexistent/fabric", "--spp", "1"], "spp"),
         (&["bake", "/nonexistent/fabric", "--k-min", "8", "--k-max", "4"], "k_min"),
+        (&["bake", "/nonexistent/fabric", "--min-gain", "1"], "min_gain"),
         (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "90"], "--held-out-turn"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "nan"], "--held-out-turn"),

@@ -88,6 +88,10 @@ pub struct BakeArgs {
     /// Stop doubling K below this training error (relative RMSE).
     #[arg(long, default_value_t = 0.05)]
     pub delta: f64,
+    /// Stop doubling K where a doubling lowers the training error by less than this
+    /// fraction of it (0: double up to --k-max; `fabric bench` does, for its K sweep).
+    #[arg(long, default_value_t = 0.03)]
+    pub min_gain: f64,
     /// Specular lobes per cluster.
     #[arg(long, default_value_t = 2)]
     pub lobes: usize,
@@ -208,7 +212,7 @@ pub struct BakeArgs {
 const MAX_HELD_OUT: usize = 256;
 
 pub fn run(args: BakeArgs) -> Result<()> {
-    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, shadows: args.shadows, pair_weights: !args.unweighted_pairs, volumetric: args.volumetric, ..Default::default() };
+    let mut options = BakeOptions { seed: args.seed, spp: args.spp, k_min: args.k_min, k_max: args.k_max, delta: args.delta, min_gain: args.min_gain, shadows: args.shadows, pair_weights: !args.unweighted_pairs, volumetric: args.volumetric, ..Default::default() };
     options.pairs.count = args.pairs;
     options.fit.lobes = args.lobes;
     options.fit.eta = args.eta;

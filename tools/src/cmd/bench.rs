@@ -252,7 +252,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let report_path = args.out.join(format!("{preset}-bake.json"));
         let t_gen = fabric(&logs.join(format!("{preset}-gen.log")), &["gen", "--preset", preset, "--size", p.size, "--seed", "1", "--out", vol.to_str().unwrap_or("vol")])?;
         let held = p.held_out.to_string();
-        let t_bake = fabric(&logs.join(format!("{preset}-bake.log")), &["bake", vol.to_str().unwrap_or("vol"), "--out", model_path.to_str().unwrap_or("m.hyb"), "--report", report_path.to_str().unwrap_or("r.json"), "--held-out", &held])?;
+        // K doubled from 4 to the default's K with no early stop: the rounds are the K
+        // sweep below, and the last, the default's K, is the model (the error fell at
+        // every doubling where measured: baker/FIT_MEASUREMENTS.md, "How many clusters").
+        let t_bake = fabric(&logs.join(format!("{preset}-bake.log")), &["bake", vol.to_str().unwrap_or("vol"), "--out", model_path.to_str().unwrap_or("m.hyb"), "--report", report_path.to_str().unwrap_or("r.json"), "--held-out", &held, "--k-min", "4", "--min-gain", "0"])?;
         let ref_path = args.out.join(format!("{preset}-reference.exr"));
         let spp = p.ref_spp.to_string();
         let mut ra = vec!["reference", vol.to_str().unwrap_or("vol"), "--spp", &spp, "--size", &ref_size, "--out", ref_path.to_str().unwrap_or("r.exr")];
