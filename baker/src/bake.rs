@@ -356,9 +356,10 @@ pub const K_AUTO: usize = 0;
 /// Texels per cluster of [`auto_k`].
 pub const AUTO_K_TEXELS: usize = 32;
 
-/// Bounds of [`auto_k`]: below 4 the clusters are too few to tell warp from weft; above 128
-/// the round's fitting time (Nelder–Mead and the frame search per cluster) passes the
-/// doubling's to 32 threefold (64² twill: 194 s against 64 s for the round of 32).
+/// Bounds of [`auto_k`]: 4, the doubling's old start; 128 for time, the fitting (Nelder–Mead
+/// and the frame search per cluster) growing with K: the round of 128 takes 194 s on a 64²
+/// twill against 64 s for the round of 32, and 255 s at 128², of the 10 minutes a stage
+/// may take there (baker/FIT_MEASUREMENTS.md, "How many clusters").
 pub const AUTO_K_RANGE: [usize; 2] = [4, 128];
 
 /// The default cluster count for `texels` texels: the largest power of two at most
