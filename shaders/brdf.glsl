@@ -280,6 +280,24 @@ vec3 cloth_lobe(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wi, vec3 
     return k * (cloth_lobe_shape(ai.theta + ao.theta, ai.phi + ao.phi, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(ai.cos_phi, a));
 }
 
+// cos(phi/2) from cos(phi), phi in (-pi, pi]: sqrt((1 + cos phi)/2), no trigonometry.
+float cloth_half_cos(float cos_phi) {
+    return sqrt(0.5 * (1.0 + min(max(cos_phi, -1.0), 1.0)));
+}
+
+// One lobe of a flyaway fibre under the cylinder law (format 1.11, MODEL flag bit 4),
+// its cosine included: k S(theta_i + theta_o, 0) F(eta, cos theta_d) c^a cos theta_i c,
+// c = cos(phi_i / 2), in the fibre frame seen from wo (phi_o = 0). The cylinder's
+// reflecting normal bisects the light's and the viewer's azimuths about the axis.
+vec3 cloth_cylinder_lobe(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
+    ClothAngles ai = cloth_angles(f, wi);
+    ClothAngles ao = cloth_angles(f, wo);
+    float c = cloth_half_cos(ai.cos_phi);
+    float fresnel = cloth_fresnel(eta, cloth_fresnel_cos(ai, ao));
+    vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
+    return k * (cloth_lobe_shape(ai.theta + ao.theta, 0.0, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(c, a) * ai.cos_theta * c);
+}
+
 // Outgoing radiance per unit irradiance, lobes sharing frame f: f_r * max(dot(n, wi), 0).
 vec3 cloth_response(ClothParams p, ClothFrame f, vec3 wi, vec3 wo, uint reading) {
     return cloth_brdf(p, f, wi, wo, reading) * max(dot(f.n, wi), 0.0);

@@ -25,11 +25,12 @@ struct EvalInput {
     vec4 lobe_gamma[CLOTH_MAX_LOBES / 4];    // gamma of lobe j at [j / 4][j % 4]
 };
 
-// 48 bytes; runtime::brdf::twin::BrdfEvalOutput.
+// 64 bytes; runtime::brdf::twin::BrdfEvalOutput.
 struct EvalOutput {
-    vec4 brdf;   // cloth_brdf (rgb)
-    vec4 lobe0;  // cloth_lobe of lobe 0 in the same frame (rgb)
-    vec4 fiber;  // cloth_brdf in cloth_fiber_frame(t, wo): t read as a fiber axis (rgb)
+    vec4 brdf;      // cloth_brdf (rgb)
+    vec4 lobe0;     // cloth_lobe of lobe 0 in the same frame (rgb)
+    vec4 fiber;     // cloth_brdf in cloth_fiber_frame(t, wo): t read as a fiber axis (rgb)
+    vec4 cylinder;  // cloth_cylinder_lobe of lobe 0 in that fiber frame (rgb)
 };
 
 layout(std430, set = 0, binding = 0) readonly buffer Inputs { EvalInput inputs[]; };
@@ -56,5 +57,7 @@ void main() {
     uint reading = e.reading == CLOTH_READING_WIDTH ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
     outputs[i].brdf = vec4(cloth_brdf(p, f, e.wi.xyz, e.wo.xyz, reading), 0.0);
     outputs[i].lobe0 = vec4(cloth_lobe(p.lobes[0], p.eta, p.a, f, e.wi.xyz, e.wo.xyz, reading), 0.0);
-    outputs[i].fiber = vec4(cloth_brdf(p, cloth_fiber_frame(e.t.xyz, e.wo.xyz), e.wi.xyz, e.wo.xyz, reading), 0.0);
+    ClothFrame ff = cloth_fiber_frame(e.t.xyz, e.wo.xyz);
+    outputs[i].fiber = vec4(cloth_brdf(p, ff, e.wi.xyz, e.wo.xyz, reading), 0.0);
+    outputs[i].cylinder = vec4(cloth_cylinder_lobe(p.lobes[0], p.eta, p.a, ff, e.wi.xyz, e.wo.xyz, reading), 0.0);
 }

@@ -234,7 +234,7 @@ pub fn node_responses(model: &HybridModel) {
         let Some(f) = &l.flyaways else { continue };
         let (mut sum, mut lit) = (0.0f64, 0usize);
         for node in &f.nodes {
-            let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, fabric_runtime::brdf::cloth_frame(glam::Vec3::Z, glam::Vec3::X)), node.tangent(), wo);
+            let b = in_fiber_frame(f.table.brdf_in_frame(node.param as usize, fabric_runtime::brdf::cloth_frame(glam::Vec3::Z, glam::Vec3::X)), node.tangent(), wo, model.meta.fiber_lobes);
             let r = texel_response(&b, wi, wo, model.meta.reading, fabric_runtime::brdf::DiffuseLaw::Lambert);
             sum += (r.x + r.y + r.z) as f64 / 3.0;
             lit += (r.max_element() > 0.0) as usize;
@@ -342,7 +342,7 @@ fn node_response(model: &HybridModel, f: &fabric_runtime::hybrid::Flyaways, inde
     let node = &f.nodes[index];
     let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(glam::Vec3::Z, glam::Vec3::X));
     let axes = f.node_axes(index);
-    (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+    (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
 }
 
 /// The 70°-style split of [`opacity_images`] with each coarse node shaded three ways:
@@ -451,7 +451,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
         // axes with the node's cluster.
         let shade_with = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, axes: &fabric_runtime::brdf::axis_spread::SpreadAxes| -> f64 {
             let base = table.brdf_in_frame(param, cloth_frame(Vec3::Z, Vec3::X));
-            (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+            (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
         };
         let mut kids: std::collections::HashMap<(u32, u32, u32), Vec<usize>> = std::collections::HashMap::new();
         // Each level-0 node's weight as the baker counts it (prefilter/flyaways.rs: what a
@@ -507,7 +507,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                     for lobe in base.params.lobes[..base.params.lobe_count as usize].iter_mut() {
                         lobe.beta = (lobe.beta * lobe.beta + widen).sqrt();
                     }
-                    split[index] = (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
+                    split[index] = (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
                 }
                 let im = per_pixel(level, 8, &|i| split[i]);
                 println!("      q {q} c {c}: {:.1}% (mean {:.3})", 100.0 * rel(&im, &truth), m(&im) / m(&truth));
@@ -529,7 +529,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                     let (a1, a2, a3) = ((1.0 - spread).max(0.0).sqrt(), l2.sqrt(), l3.sqrt());
                     let corners = [e1 * a1 + e2 * a2 + e3 * a3, e1 * a1 + e2 * a2 - e3 * a3, e1 * a1 - e2 * a2 + e3 * a3, e1 * a1 - e2 * a2 - e3 * a3];
                     let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
-                    let resp = |a: Vec3| { let r = texel_response(&in_fiber_frame(base, a.normalize(), wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 };
+                    let resp = |a: Vec3| { let r = texel_response(&in_fiber_frame(base, a.normalize(), wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 };
                     let c: f64 = corners.iter().map(|&a| 0.25 * resp(a)).sum();
                     v[index] = if set == "corners" { c } else { 0.5 * c + 0.5 * shade_with(&f.table, node.param as usize, &f.node_axes(index)) };
                 }
@@ -596,12 +596,12 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
                                         (dec, 0.5 * (l2 + l3), 0.5 * (l2 + l3))
                                     } else { (e1, l2, l3) };
                                     let axes = fabric_runtime::brdf::axis_spread::spread_axes(e1, theta, l2, l3);
-                                    sum += (weights[c] / total) as f64 * (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum::<f64>();
+                                    sum += (weights[c] / total) as f64 * (0..8).filter(|&k| axes.weights[k] > 0.0).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum::<f64>();
                                 }
                                 v[index] = sum;
                                 continue;
                             }
-                            v[index] = centres.iter().zip(&weights).map(|(c, w)| (*w / total) as f64 * { let r = texel_response(&in_fiber_frame(base, *c, wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
+                            v[index] = centres.iter().zip(&weights).map(|(c, w)| (*w / total) as f64 * { let r = texel_response(&in_fiber_frame(base, *c, wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum();
                         }
                     }
                 }
@@ -619,7 +619,7 @@ pub fn oracle_images(model: &HybridModel, polar: f32) {
             }).collect();
             let resp_at = |table: &fabric_runtime::hybrid::BrdfTable, param: usize, a: Vec3, wi: Vec3, wo: Vec3| -> f64 {
                 let base = table.brdf_in_frame(param, cloth_frame(Vec3::Z, Vec3::X));
-                let r = texel_response(&in_fiber_frame(base, a, wo), wi, wo, model.meta.reading, DiffuseLaw::Lambert);
+                let r = texel_response(&in_fiber_frame(base, a, wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, DiffuseLaw::Lambert);
                 (r.x + r.y + r.z) as f64 / 3.0
             };
             let mut v = oracle.clone();

@@ -18,7 +18,7 @@ fn node_response(model: &HybridModel, f: &Flyaways, index: usize, wi: Vec3, wo: 
     let node = &f.nodes[index];
     let base = f.table.brdf_in_frame(node.param as usize, cloth_frame(Vec3::Z, Vec3::X));
     let axes = f.node_axes(index);
-    (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo), wi, wo, model.meta.reading, fabric_runtime::brdf::DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
+    (0..8).map(|k| axes.weights[k] as f64 * { let r = texel_response(&in_fiber_frame(base, axes.axes[k], wo, model.meta.fiber_lobes), wi, wo, model.meta.reading, fabric_runtime::brdf::DiffuseLaw::Lambert); (r.x + r.y + r.z) as f64 / 3.0 }).sum()
 }
 
 fn main() {

@@ -22,7 +22,7 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw, FiberLobes};
 use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
@@ -129,6 +129,9 @@ pub struct FlyawayOptions {
     /// [`crate::prefilter::path_gain::fit_level0_gain`]): the model's flyaway voxels let
     /// through what the volume's do, on average, at every polar angle.
     pub path_gain: bool,
+    /// How the flyaways' lobes fall with the azimuth about the fibre (format 1.11's
+    /// cylinder law, or the frame facing the viewer of the files before).
+    pub lobes: FiberLobes,
 }
 
 impl Default for FlyawayOptions {
@@ -137,7 +140,10 @@ impl Default for FlyawayOptions {
         // blocks against 29.8% with opaque voxels (30.6% with no flyaways).
         // The path gain: held-out twill 26.6% → 26.3% (worst 33.2 → 32.0%), satin and
         // felt in baker/FIT_MEASUREMENTS.md ("The flyaways' opacity against the volume").
-        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true }
+        // The cylinder law: held-out satin 30.6% → 26.3% (64², K = 8; its mirror views
+        // 40–45% → 22–27%), felt 22.7 → 21.7%, twill 17.4 → 16.9% (baker/FIT_MEASUREMENTS.md,
+        // "The flyaways' lobes as cylinders").
+        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder }
     }
 }
 
@@ -535,6 +541,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         volumetric: options.volumetric,
         coarse_visibility: false,
         diffuse: options.fit.diffuse,
+        fiber_lobes: options.flyaways.as_ref().map_or(FiberLobes::Facing, |f| f.lobes),
         fit_error: vec![fit_error],
         source_bbox: bbox,
         source_dims: [nx as u32, ny as u32, nz as u32],

@@ -51,7 +51,7 @@ fn glsl_and_rust_twins_agree_on_lavapipe() {
         let r = input.evaluate();
         let floor = 1e-6 * scale(input);
         let mut e = 0.0f32;
-        for (a, b) in g.brdf.iter().chain(&g.lobe0).chain(&g.fiber).zip(r.brdf.iter().chain(&r.lobe0).chain(&r.fiber)) {
+        for (a, b) in g.brdf.iter().chain(&g.lobe0).chain(&g.fiber).chain(&g.cylinder).zip(r.brdf.iter().chain(&r.lobe0).chain(&r.fiber).chain(&r.cylinder)) {
             assert!(a.is_finite() && *a >= 0.0, "input {i}: GPU gave {a}: {input:?}");
             e = e.max((a - b).abs() / a.abs().max(b.abs()).max(floor));
         }
@@ -120,7 +120,7 @@ fn stress_gpu(count: usize, seed: u64) {
         let gpu = evaluate_on_gpu(&device, &inputs);
         for (i, (input, g)) in inputs.iter().zip(&gpu).enumerate() {
             let bound = 1.0001 * bound_of(input);
-            for v in g.brdf.iter().chain(&g.lobe0).chain(&g.fiber) {
+            for v in g.brdf.iter().chain(&g.lobe0).chain(&g.fiber).chain(&g.cylinder) {
                 assert!(v.is_finite() && *v >= 0.0 && *v <= bound, "batch {k} input {i}: {v} outside [0, {bound}]: {input:?}");
             }
         }

@@ -323,7 +323,7 @@ fn a_single_flyaway_voxel_in_front_of_the_surface() {
                 let wo = -ray.d;
                 let s = light.sample(Vec3::ZERO);
                 if t1 > t0 {
-                    let frame_b = fabric_runtime::cpu::shading::in_fiber_frame(decoded_fly, fiber_q, wo);
+                    let frame_b = fabric_runtime::cpu::shading::in_fiber_frame(decoded_fly, fiber_q, wo, m.meta.fiber_lobes);
                     let want = s.irradiance * texel_response(&frame_b, s.wi, wo, fabric_runtime::brdf::BrdfReading::Bounded, fabric_runtime::brdf::DiffuseLaw::Lambert);
                     assert!((got.radiance - want).abs().max_element() <= 1e-5 * want.max_element().max(1e-3), "view ({theta}, {phi}) pixel ({px}, {py}): {} vs flyaway {want}", got.radiance);
                     assert_eq!(got.flyaway_opacity, 1.0);

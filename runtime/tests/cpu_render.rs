@@ -371,7 +371,7 @@ fn coarse_flyaway_voxels_are_alpha_composited_by_path_length() {
                 }
                 let opacity = 1.0 - (1.0 - alpha).powf(path / edge);
                 let wo = -d;
-                let b = in_fiber_frame(m.levels[1].flyaways.as_ref().unwrap().table.brdf_in_frame(0, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)), Vec3::X, wo);
+                let b = in_fiber_frame(m.levels[1].flyaways.as_ref().unwrap().table.brdf_in_frame(0, fabric_runtime::brdf::cloth_frame(Vec3::Z, Vec3::X)), Vec3::X, wo, m.meta.fiber_lobes);
                 let s = light.sample(Vec3::ZERO);
                 let l_fly = s.irradiance * texel_response(&b, s.wi, wo, BrdfReading::Bounded, fabric_runtime::brdf::DiffuseLaw::Lambert);
                 let want = opacity * l_fly + (1.0 - opacity) * behind;

@@ -482,6 +482,41 @@ fn sky_light() -> fabric_runtime::cpu::EnvLight {
     fabric_runtime::cpu::EnvLight::new(PrefilteredEnv::with_lights(&sky, ExtractOptions::default()).unwrap())
 }
 
+/// Format 1.11's flyaway lobes as cylinders (`brdf::cloth_cylinder_lobe`): the twins
+/// agree under lights and under the sky, near and far (coarse flyaway nodes with their
+/// spread axes), and the flag changes the image.
+#[test]
+fn cylinder_flyaway_lobes_match_the_cpu_twin() {
+    use fabric_runtime::brdf::FiberLobes;
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let facing = examples::sample_model();
+    assert!(facing.levels.iter().any(|l| l.flyaways.is_some()), "the sample model has flyaways");
+    let mut cylinder = facing.clone();
+    cylinder.meta.fiber_lobes = FiberLobes::Cylinder;
+    let lights = [Light::Point { position: Vec3::new(0.5, -0.5, 1.0), intensity: Vec3::splat(2.0) }, Light::directional(Vec3::new(-0.3, 0.1, 0.5), Vec3::new(0.5, 0.45, 0.4))];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let near = Camera { origin: Vec3::new(0.3, -1.5, 1.2), target: Vec3::new(0.0, 0.0, 0.1), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 96, height: 72 };
+    let far = Camera::orbit_orthographic(45.0, 20.0, Vec3::new(0.0, 0.0, 0.1), 30.0, 9.0, 24, 24);
+    let level1 = CpuRenderOptions { level: LevelChoice::Fixed(1), ..opts.clone() };
+    for (name, camera, options) in [("cylinder lobes near", near, opts.clone()), ("cylinder lobes far", far, opts.clone()), ("cylinder lobes, level 1's flyaways", near, level1)] {
+        let case = Case { name, camera, options: options.clone() };
+        assert_twins_agree(name, &compare(&pass, &cylinder, &lights, &case));
+        if matches!(options.level, LevelChoice::Auto { .. }) {
+            let a = render(&cylinder, &camera, &lights, &options).unwrap();
+            let b = render(&facing, &camera, &lights, &options).unwrap();
+            assert!(relative_rmse(&a, &b).unwrap() > 1e-3, "{name}: the law changes the flyaways");
+        }
+    }
+    let sky = CpuRenderOptions { env: Some(sky_light()), ..opts.clone() };
+    for (name, camera) in [("cylinder lobes near, sky", near), ("cylinder lobes far, sky", far)] {
+        let Agreement { rmse, differing: d, .. } = compare(&pass, &cylinder, &[], &Case { name, camera, options: sky.clone() });
+        // As in environment_light_matches_the_cpu_twin: a lookup on a texel's edge.
+        assert!(rmse < 1e-2 && d < 0.005, "{name}: relative RMSE {rmse}, {d} of pixels differ");
+    }
+    assert_no_validation_errors(&device);
+}
+
 #[test]
 fn environment_light_matches_the_cpu_twin() {
     use fabric_runtime::cpu::{EnvLight, Edits};

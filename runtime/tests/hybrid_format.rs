@@ -676,7 +676,7 @@ fn long_randomized_corruption() {
 }
 
 #[test]
-fn model_flag_bit_3_is_the_diffuse_law_and_unknown_bits_are_rejected() {
+fn model_flag_bits_3_and_4_are_the_diffuse_and_flyaway_laws_and_unknown_bits_are_rejected() {
     let mut parts = Parts::of(&sample_bytes());
     let flags = |p: &mut Parts| u32::from_le_bytes(p.find(SectionKind::Model, 0)[16..20].try_into().unwrap());
     let set = |p: &mut Parts, f: u32| p.find(SectionKind::Model, 0)[16..20].copy_from_slice(&f.to_le_bytes());
@@ -684,7 +684,15 @@ fn model_flag_bit_3_is_the_diffuse_law_and_unknown_bits_are_rejected() {
     assert_eq!(base & 8, 0, "the sample is Lambert's");
     set(&mut parts, base | 8);
     assert_eq!(format::read(&parts.assemble()).unwrap().meta.diffuse, fabric_runtime::brdf::DiffuseLaw::LommelSeeliger);
-    for bit in [16u32, 1 << 31] {
+    assert_eq!(base & 16, 0, "the sample's flyaways face the viewer");
+    assert_eq!(format::read(&parts.assemble()).unwrap().meta.fiber_lobes, fabric_runtime::brdf::FiberLobes::Facing);
+    set(&mut parts, base | 16);
+    assert_eq!(format::read(&parts.assemble()).unwrap().meta.fiber_lobes, fabric_runtime::brdf::FiberLobes::Cylinder);
+    // And the writer sets it: a round trip keeps the law.
+    let mut m = sample();
+    m.meta.fiber_lobes = fabric_runtime::brdf::FiberLobes::Cylinder;
+    assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap().meta.fiber_lobes, fabric_runtime::brdf::FiberLobes::Cylinder);
+    for bit in [32u32, 1 << 31] {
         set(&mut parts, base | bit);
         let err = format::read(&parts.assemble()).unwrap_err().to_string();
         assert!(err.contains("MODEL") && err.contains("unknown flags"), "{err}");
@@ -702,6 +710,10 @@ fn fuzz_seeds_are_current() {
     for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
+        m
+    }), ("cylinder.hyb", {
+        let mut m = sample();
+        m.meta.fiber_lobes = fabric_runtime::brdf::FiberLobes::Cylinder;
         m
     })] {
         let bytes = format::to_bytes(&model).unwrap();

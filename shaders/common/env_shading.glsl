@@ -104,23 +104,25 @@ vec3 env_group_flush(inout EnvGroup g) {
 // One lobe's SG mixture of at most `nodes` SGs, read from the prefiltered map in at most
 // `lookups` groups (lobe_env_nodes, EnvGroup, EnvBudget). `through`: the transmission
 // lobe of attenuation `tau` under the map below the sheet (EnvSide::Transmitted; the
-// bounded reading, no Fresnel or shadowing, axes mirrored), else a reflection lobe.
-vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, bool through, float tau, uint nodes, uint lookups) {
+// bounded reading, no Fresnel or shadowing, axes mirrored), else a reflection lobe;
+// `cylinder`: a flyaway's lobe under the cylinder law (EnvSide::Cylinder: the whole
+// circle of azimuths, shadowing and cosine at cos(phi/2), no falloff).
+vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, bool through, float tau, bool cylinder, uint nodes, uint lookups) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
     if (max(max(k.x, k.y), k.z) <= 0.0) {
         return vec3(0.0);
     }
-    if (through) {
+    if (through || cylinder) {
         reading = CLOTH_READING_BOUNDED;
         volumetric = false;
     }
     ClothAngles ao = cloth_angles(f, wo);
     float theta_c = -ao.theta;
     float beta = min(max(lobe.beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
-    bool falloff_on = reading == CLOTH_READING_BOUNDED && lobe.gamma > 0.0;
+    bool falloff_on = reading == CLOTH_READING_BOUNDED && lobe.gamma > 0.0 && !cylinder;
     const float HALF_PI = 1.57079632679490;
-    float phi_lo = -HALF_PI;
-    float phi_hi = HALF_PI;
+    float phi_lo = cylinder ? -ENV_PI : -HALF_PI;
+    float phi_hi = cylinder ? ENV_PI : HALF_PI;
     if (falloff_on) {
         float g3 = 3.0 * lobe.gamma;
         phi_lo = max(phi_lo, -ao.phi - g3);
@@ -150,8 +152,9 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
         float phi = phi_lo + (float(c) + 0.5) * d_phi;
         float sp = sin(phi);
         float cp = cos(phi);
-        float pf = cloth_phi_falloff(phi + ao.phi, lobe.gamma);
-        vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cp, a)) * (bounded ? pf : 1.0));
+        float pf = cylinder ? 1.0 : cloth_phi_falloff(phi + ao.phi, lobe.gamma);
+        float cs = cylinder ? cloth_half_cos(cp) : cp;
+        vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cs, a)) * (bounded ? pf : 1.0));
         if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
             continue;
         }
@@ -164,7 +167,7 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
                 continue;
             }
             vec3 wi = f.t * cell.s + (f.n * cp + f.b * sp) * cell.c;
-            float cos_n = cell.c * cp;
+            float cos_n = cell.c * cs;
             if (!(cos_n > 0.0) || !(wi.z > 0.0)) {
                 continue;
             }
@@ -198,7 +201,7 @@ vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, 
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
-        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, false, 0.0, nodes, lookups);
+        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, false, 0.0, r.cylinder, nodes, lookups);
     }
     return resp;
 }
@@ -240,7 +243,7 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
     if (gap > 0.0) {
         resp += gap * env_blurred(-wo, 0.0);
     }
-    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, nodes, lookups);
+    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, false, nodes, lookups);
 }
 
 #endif // ENV_SHADING_GLSL

@@ -26,6 +26,7 @@
 #define GPU_FLAG_COARSE_VISIBILITY 4u
 #define GPU_FLAG_READING_WIDTH 8u
 #define GPU_FLAG_DIFFUSE_LS 16u
+#define GPU_FLAG_FIBER_CYLINDER 32u
 #define GPU_SURFACE_CLUSTERED 0u
 #define GPU_SURFACE_PER_TEXEL 1u
 #define NO_NODE 0xffffffffu
@@ -119,6 +120,11 @@ uint model_reading() {
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
 }
 
+// Whether the flyaways' lobes follow the cylinder law (format 1.11).
+bool model_fiber_cylinder() {
+    return (model.flags & GPU_FLAG_FIBER_CYLINDER) != 0u;
+}
+
 // The surface texels' diffuse law (flyaways: always CLOTH_DIFFUSE_LAMBERT).
 uint model_diffuse() {
     return (model.flags & GPU_FLAG_DIFFUSE_LS) != 0u ? CLOTH_DIFFUSE_LOMMEL_SEELIGER : CLOTH_DIFFUSE_LAMBERT;
@@ -165,6 +171,8 @@ struct TexelRef {
     bool tilted;
     vec3 tilt_n0;
     vec3 tilt_nv;
+    // A flyaway whose lobes follow the cylinder law (cloth_cylinder_lobe; in_fiber_frame).
+    bool cylinder;
 };
 
 // Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
@@ -187,6 +195,7 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
     r.tilted = false;
     r.tilt_n0 = vec3(0.0, 0.0, 1.0);
     r.tilt_nv = vec3(0.0, 0.0, 1.0);
+    r.cylinder = false;
     return r;
 }
 

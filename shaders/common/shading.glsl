@@ -94,13 +94,18 @@ ClothLobe edited_lobe(TexelRef r, Edit e, EditedTexel t, uint j, out ClothFrame 
 // Reflected radiance toward wo per unit irradiance from wi, the texel edited by `e`
 // (its tangents rotated where `rotate`; Edit::apply):
 // k_d D(n_0, wi, wo) + sum_j cloth_lobe_j max(n_j.wi, 0), D by the diffuse law
-// (model_diffuse() at surface hits, CLOTH_DIFFUSE_LAMBERT at flyaways).
+// (model_diffuse() at surface hits, CLOTH_DIFFUSE_LAMBERT at flyaways), the lobes by the
+// cylinder law where r.cylinder.
 vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint reading, uint diffuse) {
     EditedTexel t = edited_texel(r, e, rotate);
     vec3 resp = t.kd * cloth_diffuse_cosine(diffuse, t.n0, wi, wo);
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
+        if (r.cylinder) {
+            resp += cloth_cylinder_lobe(lobe, t.eta, t.a, f, wi, wo, reading);
+            continue;
+        }
         float cos_i = dot(f.n, wi);
         if (cos_i > 0.0) {
             resp += cloth_lobe(lobe, t.eta, t.a, f, wi, wo, reading) * cos_i;
@@ -159,7 +164,7 @@ float volume_factor(vec3 wi, vec3 wo) {
 // `fiber` seen from wo.
 TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
     GpuLevel l = model.levels[level];
-    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE, false, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0));
+    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE, false, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), model_fiber_cylinder());
 }
 
 // Visibility of a light from p (height-field shadow ray); counts step-limited rays.

@@ -11,7 +11,7 @@
 
 use std::time::Instant;
 
-use fabric_runtime::brdf::{ClothFrame, DiffuseLaw, cloth_angles, cloth_diffuse_cosine, cloth_fresnel_cos};
+use fabric_runtime::brdf::{ClothFrame, DiffuseLaw, FiberLobes, cloth_angles, cloth_diffuse_cosine, cloth_fresnel_cos, cloth_half_cos};
 use fabric_runtime::cpu::shading::volume_factor;
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
 use fabric_runtime::hybrid::HybridModel;
@@ -111,6 +111,22 @@ impl Geo {
         let (ai, ao) = (cloth_angles(frame, wi), cloth_angles(frame, wo));
         let kd_cos = cloth_diffuse_cosine(diffuse, frame.n, wi, wo) * visibility;
         Geo { theta_sum: ai.theta + ao.theta, phi_sum: ai.phi + ao.phi, cos_phi_i: ai.cos_phi, cos_d: cloth_fresnel_cos(&ai, &ao), cos_i: frame.n.dot(wi).max(0.0) * visibility, kd_cos }
+    }
+
+    /// The factors of a flyaway fibre in its frame `frame` (the fibre frame seen from
+    /// `wo`) under the model's law `lobes`: Lambert's diffuse term on the side facing the
+    /// viewer, and for [`FiberLobes::Cylinder`] the lobes of `brdf::cloth_cylinder_lobe`
+    /// (φ_i + φ_o = 0, shadowing and cosine at the half-angle c = cos(φ_i / 2)).
+    pub fn fiber(frame: &ClothFrame, wi: Vec3, wo: Vec3, visibility: f32, lobes: FiberLobes) -> Geo {
+        let g = Geo::new(frame, wi, wo, visibility, DiffuseLaw::Lambert);
+        match lobes {
+            FiberLobes::Facing => g,
+            FiberLobes::Cylinder => {
+                let ai = cloth_angles(frame, wi);
+                let c = cloth_half_cos(ai.cos_phi);
+                Geo { phi_sum: 0.0, cos_phi_i: c, cos_i: ai.cos_theta * c * visibility, ..g }
+            }
+        }
     }
 
     /// The factors with every term weighted by `w` (a sample's weight in the fit).

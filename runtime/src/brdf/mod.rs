@@ -118,6 +118,22 @@ impl BrdfReading {
     }
 }
 
+/// How a flyaway fibre's lobes fall with the azimuth about its axis (format 1.11, MODEL
+/// flag bit 4; [`cloth_cylinder_lobe`]). The value is what the GLSL (`CLOTH_FIBER_*`)
+/// passes.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FiberLobes {
+    /// Each lobe as on a surface whose normal faces the viewer (n = ω_o made
+    /// perpendicular to the axis): [`cloth_lobe`] · max(n·ω_i, 0), dark once the light is
+    /// more than 90° of azimuth from the viewer (files before 1.11).
+    #[default]
+    Facing = 0,
+    /// Each lobe as on a cylinder ([`cloth_cylinder_lobe`]): lit and seen at every
+    /// azimuth but straight behind the fibre.
+    Cylinder = 1,
+}
+
 /// How a texel's diffuse term k_d falls with the directions (format 1.6, MODEL flag
 /// bit 3; [`cloth_diffuse_cosine`]). The value is what the GLSL (`CLOTH_DIFFUSE_*`)
 /// passes.
@@ -387,6 +403,35 @@ pub fn cloth_lobe(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wi: Vec3, 
     let fresnel = cloth_fresnel(eta, cloth_fresnel_cos(&ai, &ao));
     let k = lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     k * (cloth_lobe_shape(ai.theta + ao.theta, ai.phi + ao.phi, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(ai.cos_phi, a))
+}
+
+/// cos(φ/2) from cos φ, φ ∈ (−π, π]: √((1 + cos φ)/2), without trigonometry.
+#[inline]
+pub fn cloth_half_cos(cos_phi: f32) -> f32 {
+    (0.5 * (1.0 + cos_phi.max(-1.0).min(1.0))).sqrt()
+}
+
+/// One lobe of a flyaway fibre under the cylinder law (format 1.11, MODEL flag bit 4),
+/// its cosine included (what [`cloth_lobe`] · max(n·ω_i, 0) is on a surface):
+/// ```text
+/// k · S(θ_i + θ_o, 0) · F(η, cos θ_d) · c^a · cos θ_i · c,   c = cos(φ_i / 2)
+/// ```
+/// in the fibre frame seen from ω_o ([`cloth_fiber_frame`], so φ_o = 0). A fibre is a
+/// cylinder: it reflects where its normal bisects the light's and the viewer's azimuths
+/// about the axis, at φ_i / 2 from the side it shows; that normal's cosine to ω_i is
+/// cos θ_i · c, and there is a normal at every azimuth, so the azimuthal falloff P is 1
+/// (φ_i + φ_o read at the bisecting normal, 0). The frame facing the viewer instead cut
+/// the lobe at 90° of azimuth: a fibre lying across a mirror view at 45° and beyond
+/// went dark where the volume's fibres shine brightest (baker/FIT_MEASUREMENTS.md, "The
+/// flyaways' lobes as cylinders").
+#[inline]
+pub fn cloth_cylinder_lobe(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wi: Vec3, wo: Vec3, reading: BrdfReading) -> Vec3 {
+    let ai = cloth_angles(f, wi);
+    let ao = cloth_angles(f, wo);
+    let c = cloth_half_cos(ai.cos_phi);
+    let fresnel = cloth_fresnel(eta, cloth_fresnel_cos(&ai, &ao));
+    let k = lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
+    k * (cloth_lobe_shape(ai.theta + ao.theta, 0.0, lobe.beta, lobe.gamma, reading) * fresnel * cloth_shadowing(c, a) * ai.cos_theta * c)
 }
 
 /// Outgoing radiance per unit irradiance for lobes sharing frame `f`:

@@ -167,7 +167,7 @@ fn finite_and_non_negative_on_a_million_random_and_extreme_inputs() {
     let mut max_seen = 0.0f32;
     for (i, input) in inputs.iter().enumerate() {
         let out = input.evaluate();
-        for v in out.brdf.iter().chain(&out.lobe0).chain(&out.fiber) {
+        for v in out.brdf.iter().chain(&out.lobe0).chain(&out.fiber).chain(&out.cylinder) {
             assert!(v.is_finite() && *v >= 0.0, "input {i}: {input:?} -> {out:?}");
             max_seen = max_seen.max(*v);
         }
@@ -201,7 +201,7 @@ fn brdf_test_vectors_are_current() {
         // Inputs are stored exactly (shortest round-trip decimal); outputs to 1e-6
         // relative, the slack a different libm's exp/asin/atan2 may need.
         assert_eq!((s.n, s.t, s.wi, s.wo, s.kd, s.eta, s.a, &s.reading, &s.lobes), (f.n, f.t, f.wi, f.wo, f.kd, f.eta, f.a, &f.reading, &f.lobes), "row {i}");
-        for (x, y) in s.brdf.iter().chain(&s.lobe0).chain(&s.fiber).zip(f.brdf.iter().chain(&f.lobe0).chain(&f.fiber)) {
+        for (x, y) in s.brdf.iter().chain(&s.lobe0).chain(&s.fiber).chain(&s.cylinder).zip(f.brdf.iter().chain(&f.lobe0).chain(&f.fiber).chain(&f.cylinder)) {
             assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-6), "row {i}: stored {x}, now {y}");
         }
     }
@@ -221,6 +221,67 @@ fn fiber_frame_sees_the_fiber_side_on() {
     let f = cloth_fiber_frame(Vec3::Z, Vec3::Z);
     assert_eq!((f.t, f.n), (Vec3::Z, cloth_reference_tangent(Vec3::Z)));
     assert_eq!(cloth_fiber_frame(Vec3::ZERO, Vec3::Z).t, Vec3::X);
+}
+
+#[test]
+fn a_cylinders_lobe_is_the_facing_lobe_where_light_and_viewer_share_the_azimuth() {
+    // φ_i = 0 about the fibre: the half-angle is 0, and cloth_lobe · n·ω_i is the same
+    // lobe (γ off, so the falloff at φ_i + φ_o = 0 is 1 in both).
+    let mut rng = SplitMix64(21);
+    for _ in 0..500 {
+        let fiber = rng.unit_vector();
+        let wo = rng.unit_vector();
+        let f = cloth_fiber_frame(fiber, wo);
+        // ω_i in the (n, t) plane on the viewer's side, at a random longitudinal angle.
+        let th = rng.range(-1.4, 1.4);
+        let wi = f.t * th.sin() + f.n * th.cos();
+        let lobe = ClothLobe { k: Vec3::new(0.7, 0.5, 0.3), beta: rng.range(0.02, 0.8), gamma: 0.0 };
+        for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+            let (eta, a) = (rng.range(1.0, 2.0), rng.range(0.0, 3.0));
+            let facing = cloth_lobe(&lobe, eta, a, &f, wi, wo, reading) * f.n.dot(wi).max(0.0);
+            let cylinder = cloth_cylinder_lobe(&lobe, eta, a, &f, wi, wo, reading);
+            assert!((facing - cylinder).abs().max_element() <= 1e-4 * facing.max_element().max(1e-3), "{facing} vs {cylinder}");
+        }
+    }
+}
+
+#[test]
+fn a_fibre_across_a_mirror_view_shines_as_a_cylinder_and_not_as_a_facing_surface() {
+    // A fibre along x, light and viewer in the y–z plane on either side at 55°: the
+    // cone condition holds (θ_i + θ_o = 0) and the cylinder's normal at the top
+    // reflects the light to the viewer. The frame facing the viewer turns the light
+    // 110° away from its normal: nothing.
+    let lobe = ClothLobe { k: Vec3::ONE, beta: 0.1, gamma: 0.5 };
+    let t = 55f32.to_radians();
+    let (wi, wo) = (Vec3::new(0.0, t.sin(), t.cos()), Vec3::new(0.0, -t.sin(), t.cos()));
+    let f = cloth_fiber_frame(Vec3::X, wo);
+    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+        assert_eq!(cloth_lobe(&lobe, 1.5, 1.0, &f, wi, wo, reading) * f.n.dot(wi).max(0.0), Vec3::ZERO);
+        let c = (0.5 * 110f32.to_radians()).cos();
+        let want = cloth_gaussian(0.0, 0.1) * cloth_fresnel(1.5, 1.0) * c * c;
+        let got = cloth_cylinder_lobe(&lobe, 1.5, 1.0, &f, wi, wo, reading);
+        assert!((got.x - want).abs() <= 1e-4 * want, "{reading:?}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn a_cylinders_lobe_is_even_in_the_azimuth_and_dark_only_straight_behind() {
+    let lobe = ClothLobe { k: Vec3::ONE, beta: 0.3, gamma: 0.2 };
+    let wo = Vec3::new(0.0, -0.6, 0.8);
+    let f = cloth_fiber_frame(Vec3::X, wo);
+    let mut last = f32::INFINITY;
+    for k in 0..=36 {
+        let phi = std::f32::consts::PI * k as f32 / 36.0;
+        let side = |s: f32| f.t * 0.2 + (f.n * phi.cos() + f.b * (s * phi.sin())) * (1.0f32 - 0.04).sqrt();
+        let (plus, minus) = (cloth_cylinder_lobe(&lobe, 1.4, 0.5, &f, side(1.0), wo, BrdfReading::Width), cloth_cylinder_lobe(&lobe, 1.4, 0.5, &f, side(-1.0), wo, BrdfReading::Width));
+        assert!((plus - minus).abs().max_element() <= 1e-5 * plus.max_element().max(1e-6), "φ {phi}: {plus} vs {minus}");
+        assert!(plus.x <= last * (1.0 + 1e-5), "φ {phi}: not falling toward straight behind");
+        if k < 36 {
+            assert!(plus.x > 0.0, "φ {phi}: dark");
+        }
+        last = plus.x;
+    }
+    assert!(last <= 1e-6, "straight behind: {last}");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::{BrdfReading, ClothLobe, ClothParams, MAX_LOBES, cloth_brdf, cloth_fiber_frame, cloth_frame, cloth_lobe};
+use super::{BrdfReading, ClothLobe, ClothParams, MAX_LOBES, cloth_brdf, cloth_cylinder_lobe, cloth_fiber_frame, cloth_frame, cloth_lobe};
 
 /// One evaluation request, laid out as `EvalInput` in `shaders/brdf_eval.comp`.
 #[repr(C)]
@@ -46,10 +46,12 @@ pub struct BrdfEvalOutput {
     pub lobe0: [f32; 4],
     /// `cloth_brdf` in `cloth_fiber_frame(t, wo)`: t read as a flyaway's fiber axis (rgb).
     pub fiber: [f32; 4],
+    /// `cloth_cylinder_lobe` of lobe 0 in that fiber frame (rgb).
+    pub cylinder: [f32; 4],
 }
 
 const _: () = assert!(core::mem::size_of::<BrdfEvalInput>() == 256);
-const _: () = assert!(core::mem::size_of::<BrdfEvalOutput>() == 48);
+const _: () = assert!(core::mem::size_of::<BrdfEvalOutput>() == 64);
 
 impl BrdfEvalInput {
     pub fn new(n: Vec3, t: Vec3, wi: Vec3, wo: Vec3, p: &ClothParams, reading: BrdfReading) -> BrdfEvalInput {
@@ -90,8 +92,10 @@ impl BrdfEvalInput {
         let (wi, wo) = (v3(self.wi), v3(self.wo));
         let brdf = cloth_brdf(&p, &f, wi, wo, self.reading());
         let lobe0 = cloth_lobe(&p.lobes[0], p.eta, p.a, &f, wi, wo, self.reading());
-        let fiber = cloth_brdf(&p, &cloth_fiber_frame(v3(self.t), wo), wi, wo, self.reading());
-        BrdfEvalOutput { brdf: brdf.extend(0.0).to_array(), lobe0: lobe0.extend(0.0).to_array(), fiber: fiber.extend(0.0).to_array() }
+        let ff = cloth_fiber_frame(v3(self.t), wo);
+        let fiber = cloth_brdf(&p, &ff, wi, wo, self.reading());
+        let cylinder = cloth_cylinder_lobe(&p.lobes[0], p.eta, p.a, &ff, wi, wo, self.reading());
+        BrdfEvalOutput { brdf: brdf.extend(0.0).to_array(), lobe0: lobe0.extend(0.0).to_array(), fiber: fiber.extend(0.0).to_array(), cylinder: cylinder.extend(0.0).to_array() }
     }
 }
 
@@ -251,6 +255,9 @@ pub struct TestVector {
     pub lobe0: [f32; 3],
     /// `cloth_brdf(params, cloth_fiber_frame(t, wo), wi, wo, reading)`.
     pub fiber: [f32; 3],
+    /// `cloth_cylinder_lobe(lobes[0], eta, a, cloth_fiber_frame(t, wo), wi, wo, reading)`
+    /// (format 1.11's flyaway lobes).
+    pub cylinder: [f32; 3],
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -294,6 +301,7 @@ impl TestVector {
             brdf: a3(out.brdf),
             lobe0: a3(out.lobe0),
             fiber: a3(out.fiber),
+            cylinder: a3(out.cylinder),
         }
     }
 }
@@ -307,7 +315,7 @@ pub fn test_vector_file() -> TestVectorFile {
     TestVectorFile {
         about: "Test vectors of the cloth BRDF (shaders/brdf.glsl and runtime/src/brdf/mod.rs), written by the Rust twin. \
                 Each row: frame (n, t; not necessarily unit or orthogonal: cloth_frame completes it), wi (toward the light) and \
-                wo (toward the viewer), parameters, reading, and the outputs cloth_brdf, cloth_lobe(lobe 0) and cloth_brdf in cloth_fiber_frame(t, wo). \
+                wo (toward the viewer), parameters, reading, and the outputs cloth_brdf, cloth_lobe(lobe 0), cloth_brdf in cloth_fiber_frame(t, wo) and cloth_cylinder_lobe(lobe 0) in that frame. \
                 The GLSL agrees with these to 1e-4 relative on lavapipe (99% of 131072 inputs within 1e-6); a port should too, using cloth_atan2 rather than its own asin/atan. \
                 Regenerate with FABRIC_BLESS=1 cargo test -p fabric-runtime brdf_test_vectors."
             .into(),

@@ -611,7 +611,7 @@ impl<'a> Scene<'a> {
                 let p = ray.at(t_in);
                 let brdf = f.table.brdf_in_frame(node.param as usize, crate::brdf::cloth_frame(Vec3::Z, Vec3::X));
                 let fiber = |axis: Vec3| {
-                    let b = in_fiber_frame(brdf, axis, wo);
+                    let b = in_fiber_frame(brdf, axis, wo, self.model.meta.fiber_lobes);
                     if self.edited { self.edit_at(p).apply(b, false) } else { b }
                 };
                 let axes = f.node_axes(index);

@@ -22,19 +22,24 @@
 
 use glam::Vec3;
 
-use crate::brdf::{BrdfReading, DiffuseLaw, K_MAX, cloth_diffuse_cosine, cloth_fiber_frame, cloth_lobe, cloth_transmission_response};
+use crate::brdf::{BrdfReading, DiffuseLaw, FiberLobes, K_MAX, cloth_cylinder_lobe, cloth_diffuse_cosine, cloth_fiber_frame, cloth_lobe, cloth_transmission_response};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{Light, LightSample};
 
 /// Reflected radiance toward `wo` per unit irradiance from `wi` (both unit, pointing
 /// away from the surface), the diffuse term by `diffuse` (the model's law at surface
-/// hits, [`DiffuseLaw::Lambert`] at flyaways).
+/// hits, [`DiffuseLaw::Lambert`] at flyaways), the lobes by the cylinder law where
+/// `b.cylinder` (a flyaway of a model with [`FiberLobes::Cylinder`]).
 #[inline]
 pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading, diffuse: DiffuseLaw) -> Vec3 {
     let p = &b.params;
     let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let mut r = kd * cloth_diffuse_cosine(diffuse, b.frames[0].n, wi, wo);
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
+        if b.cylinder {
+            r += cloth_cylinder_lobe(lobe, p.eta, p.a, frame, wi, wo, reading);
+            continue;
+        }
         let cos_i = frame.n.dot(wi);
         if cos_i > 0.0 {
             r += cloth_lobe(lobe, p.eta, p.a, frame, wi, wo, reading) * cos_i;
@@ -65,10 +70,11 @@ pub fn volume_factor(wi: Vec3, wo: Vec3) -> f32 {
 }
 
 /// Replaces every frame of a flyaway BRDF by the fiber frame of axis `fiber` seen from
-/// `wo` (DESIGN.md §5).
+/// `wo` (DESIGN.md §5), its lobes by the model's law `lobes`.
 #[inline]
-pub fn in_fiber_frame(mut b: TexelBrdf, fiber: Vec3, wo: Vec3) -> TexelBrdf {
+pub fn in_fiber_frame(mut b: TexelBrdf, fiber: Vec3, wo: Vec3, lobes: FiberLobes) -> TexelBrdf {
     b.frames = [cloth_fiber_frame(fiber, wo); crate::brdf::MAX_LOBES];
+    b.cylinder = lobes == FiberLobes::Cylinder;
     b
 }
 

@@ -240,6 +240,9 @@ pub struct TexelBrdf {
     pub params: ClothParams,
     pub frames: [ClothFrame; MAX_LOBES],
     pub transmission: ClothTransmission,
+    /// A flyaway fibre whose lobes follow the cylinder law
+    /// ([`crate::brdf::cloth_cylinder_lobe`]; set by `cpu::shading::in_fiber_frame`).
+    pub cylinder: bool,
 }
 
 /// Headers and lobes: a cluster table, a flyaway table, or a level's per-texel BRDFs.
@@ -281,7 +284,7 @@ impl BrdfTable {
         for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
             params.lobes[j] = lobe.lobe();
         }
-        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default() }
+        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default(), cylinder: false }
     }
 
     /// Entry `index` with each lobe in its own frame (per-texel encoding).
@@ -293,7 +296,7 @@ impl BrdfTable {
             params.lobes[j] = lobe.lobe();
             frames[j] = lobe.frame();
         }
-        TexelBrdf { params, frames, transmission: ClothTransmission::default() }
+        TexelBrdf { params, frames, transmission: ClothTransmission::default(), cylinder: false }
     }
 
     /// Checks every header and lobe: counts and ranges, finite parameters in range.

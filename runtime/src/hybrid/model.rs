@@ -215,8 +215,11 @@ pub struct BakeMetadata {
     /// levels ≥ 1 without shadow rays then.
     pub coarse_visibility: bool,
     /// The law of the surface texels' diffuse term ([`crate::brdf::cloth_diffuse_cosine`];
-    /// Lommel–Seeliger since format 1.6). Flyaways' is always Lambert's.
+    /// Lommel–Seeliger since format 1.6). Flyaways' is always Lambert's, in the frame facing the viewer.
     pub diffuse: crate::brdf::DiffuseLaw,
+    /// How the flyaways' lobes fall with the azimuth about the fibre
+    /// ([`crate::brdf::FiberLobes`]; the cylinder since format 1.11).
+    pub fiber_lobes: crate::brdf::FiberLobes,
     /// Relative fit error per level (≥ 0), or negative where not measured.
     pub fit_error: Vec<f32>,
     /// Bounding box of the source volume.

@@ -36,6 +36,15 @@ pub enum AlphaArg {
     Density,
 }
 
+/// How the flyaways' lobes fall with the azimuth about the fibre.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FiberLobesArg {
+    /// As a cylinder: lit and seen at every azimuth but straight behind the fibre (format 1.11)
+    Cylinder,
+    /// As a surface facing the viewer: dark past 90° of azimuth from it (files before 1.11)
+    Facing,
+}
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ReadingArg {
     Bounded,
@@ -158,6 +167,11 @@ pub struct BakeArgs {
     /// "The flyaways' opacity against the volume").
     #[arg(long)]
     pub no_flyaway_path_gain: bool,
+    /// The flyaways' lobes about the fibre axis: a cylinder's (the default; format 1.11's
+    /// MODEL flag bit 4), or a surface's facing the viewer (as before 1.11;
+    /// baker/FIT_MEASUREMENTS.md, "The flyaways' lobes as cylinders")
+    #[arg(long, value_enum, default_value = "cylinder")]
+    pub flyaway_lobes: FiberLobesArg,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -274,6 +288,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
             AlphaArg::Density => FlyawayAlpha::Density,
         },
         path_gain: !args.no_flyaway_path_gain,
+        lobes: match args.flyaway_lobes {
+            FiberLobesArg::Cylinder => fabric_runtime::brdf::FiberLobes::Cylinder,
+            FiberLobesArg::Facing => fabric_runtime::brdf::FiberLobes::Facing,
+        },
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
