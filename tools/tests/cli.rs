@@ -325,9 +325,14 @@ fn the_demo_runs_the_main_job_end_to_end() {
     let o = fabric().args(["inspect", "--json"]).arg(out.join("twill.hyb")).output().unwrap();
     let json = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success() && json.contains("\"diffuse\": \"lommel-seeliger\""), "{json}");
+    // And its flyaways' lobes are cylinders (format 1.11).
+    assert!(json.contains("\"fiber_lobes\": \"cylinder\""), "{json}");
     let o = fabric().args(["bake", "/nonexistent/fabric", "--diffuse", "phong", "--out"]).arg(out.join("never.hyb")).output().unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && stderr.contains("lommel-seeliger") && !stderr.contains("panicked"), "{stderr}");
+    let o = fabric().args(["bake", "/nonexistent/fabric", "--flyaway-lobes", "sphere", "--out"]).arg(out.join("never.hyb")).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("cylinder") && stderr.contains("facing") && !stderr.contains("panicked"), "{stderr}");
     let o = fabric().args(["demo", "--spp", "0", "--out"]).arg(&out).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--spp"));
     let o = fabric().args(["demo", "--size", "0x0x0", "--out"]).arg(&out).output().unwrap();

@@ -149,6 +149,15 @@ pub enum DiffuseLaw {
     LommelSeeliger = 1,
 }
 
+impl FiberLobes {
+    pub fn name(self) -> &'static str {
+        match self {
+            FiberLobes::Facing => "facing",
+            FiberLobes::Cylinder => "cylinder",
+        }
+    }
+}
+
 impl DiffuseLaw {
     pub fn name(self) -> &'static str {
         match self {

@@ -108,6 +108,8 @@ pub struct ModelStats {
     pub coarse_visibility: bool,
     /// The surface's diffuse law (`lambert` or `lommel-seeliger`).
     pub diffuse: &'static str,
+    /// The flyaways' lobes (`facing` or `cylinder`, format 1.11).
+    pub fiber_lobes: &'static str,
     pub source_bbox: [f32; 6],
     pub source_dims: [u32; 3],
     pub seed: u64,
@@ -221,6 +223,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         volumetric: m.meta.volumetric,
         coarse_visibility: m.meta.coarse_visibility,
         diffuse: m.meta.diffuse.name(),
+        fiber_lobes: m.meta.fiber_lobes.name(),
         source_bbox: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
         source_dims: m.meta.source_dims,
         seed: m.meta.seed,
