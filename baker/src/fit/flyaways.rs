@@ -4,7 +4,11 @@
 //!   axis tensor, sign-free) and fiber diameter; one BRDF per cluster.
 //! - Shape: β_j, γ_j, a and η are fixed to the surface's — the median over the texels of
 //!   their cluster's values (the paper: "β_1 and β_2 fixed to the surface's"), so only
-//!   the linear parameters k_d, k_j are fitted.
+//!   the linear parameters k_d, k_j are fitted (searching β, γ as well bought 0.1–0.7
+//!   points of held-out error, not kept: baker/FIT_MEASUREMENTS.md, "The flyaways' lobes
+//!   as cylinders").
+//! - Law: the lobes of the model's `FiberLobes` (a cylinder's by default, format 1.11),
+//!   the diffuse term Lambert's about the normal facing the viewer (`Geo::fiber`).
 //! - Fit: training renderings of the *full* volume (flyaways and surface together, so
 //!   their interreflection is in the data); every training ray is traced through the
 //!   model with its flyaway lists by the runtime's probe, which gives each node crossed
@@ -123,107 +127,12 @@ pub fn surface_shape(texel_params: &[ClothParams]) -> ClothParams {
     ClothParams::new(Vec3::ZERO, median(texel_params.iter().map(|p| p.eta).collect()), median(texel_params.iter().map(|p| p.a).collect()), &lobe)
 }
 
-/// One flyaway node crossed by a training ray: its cluster, its weight (transmittance in
-/// front × opacity, over the pixel's rays) and its factors in the fibre's frame.
-struct Crossing {
-    param: u32,
-    weight: f32,
-    geo: Geo,
-}
-
-/// One training pixel: its target, the target less the surface seen through the
-/// flyaways, and the flyaway nodes its rays cross.
+/// One training pixel: its target less the surface seen through the flyaways, and its
+/// basis row (per cluster: k_d and each lobe's unit-k response, weighted).
 struct PixelRow {
     target: Vec3,
     residual: Vec3,
-    crossings: Vec<Crossing>,
-}
-
-/// The flyaway clusters' BRDFs with their fitted k's, and the squared residual.
-struct KSolve {
-    params: Vec<ClothParams>,
-    residual2: f64,
-}
-
-/// The clusters' k's for their `shapes` (β_j, γ_j, a, η; one per cluster, the same lobe
-/// count): the normal equations of all pixels (per cluster: k_d, then each lobe's unit-k
-/// response), NNLS per RGB channel.
-fn solve_k(rows: &[PixelRow], shapes: &[ClothParams], reading: BrdfReading) -> Result<KSolve, String> {
-    let clusters = shapes.len();
-    let nb = 1 + shapes.first().map_or(0, |s| s.lobe_count as usize);
-    let cols = clusters * nb;
-    // Per cluster, each lobe alone with k = 1: its unit response.
-    let unit: Vec<Vec<ClothParams>> = shapes
-        .iter()
-        .map(|shape| {
-            shape
-                .lobes()
-                .iter()
-                .map(|l| {
-                    let mut u = *shape;
-                    u.kd = Vec3::ZERO;
-                    u.lobe_count = 1;
-                    u.lobes[0] = ClothLobe { k: Vec3::ONE, ..*l };
-                    u
-                })
-                .collect()
-        })
-        .collect();
-    let empty = || (vec![0.0f64; cols * cols], [vec![0.0f64; cols], vec![0.0f64; cols], vec![0.0f64; cols]], [0.0f64; 3]);
-    let (mut gram, atb, btb) = rows
-        .par_iter()
-        .fold(empty, |(mut gram, mut atb, mut btb), r| {
-            let mut row = vec![0.0f64; cols];
-            for c in &r.crossings {
-                let base = c.param as usize * nb;
-                row[base] += (c.weight * c.geo.kd_cos) as f64;
-                for (j, u) in unit[c.param as usize].iter().enumerate() {
-                    row[base + 1 + j] += (c.weight * predict(u, &c.geo, reading).x) as f64;
-                }
-            }
-            for a in 0..cols {
-                if row[a] == 0.0 {
-                    continue;
-                }
-                for b in 0..cols {
-                    gram[a * cols + b] += row[a] * row[b];
-                }
-            }
-            let y = r.residual.as_dvec3().to_array();
-            for ch in 0..3 {
-                for (acc, x) in atb[ch].iter_mut().zip(&row) {
-                    *acc += x * y[ch];
-                }
-                btb[ch] += y[ch] * y[ch];
-            }
-            (gram, atb, btb)
-        })
-        .reduce(empty, |(mut g1, mut a1, mut b1), (g2, a2, b2)| {
-            g1.iter_mut().zip(&g2).for_each(|(x, y)| *x += y);
-            for ch in 0..3 {
-                a1[ch].iter_mut().zip(&a2[ch]).for_each(|(x, y)| *x += y);
-                b1[ch] += b2[ch];
-            }
-            (g1, a1, b1)
-        });
-    // A tiny ridge keeps clusters no ray sees at zero instead of undetermined.
-    let trace: f64 = (0..cols).map(|a| gram[a * cols + a]).sum::<f64>() / cols.max(1) as f64;
-    for a in 0..cols {
-        gram[a * cols + a] += 1e-6 * trace.max(1e-30);
-    }
-    let mut params = shapes.to_vec();
-    let mut residual2 = 0.0;
-    for ch in 0..3 {
-        let sol = nnls_gram(&gram, &atb[ch], btb[ch], cols).map_err(|e| format!("flyaway solve failed: {e}"))?;
-        residual2 += sol.residual2;
-        for (c, p) in params.iter_mut().enumerate() {
-            p.kd[ch] = sol.x[c * nb] as f32;
-            for j in 0..nb - 1 {
-                p.lobes[j].k[ch] = sol.x[c * nb + 1 + j] as f32;
-            }
-        }
-    }
-    Ok(KSolve { params, residual2 })
+    row: Vec<f64>,
 }
 
 /// Fits the flyaway clusters' k's with the surface fixed. `model` holds the surface
@@ -241,9 +150,22 @@ pub fn fit_flyaways(
     clusters: usize,
     reading: BrdfReading,
 ) -> (Vec<ClothParams>, FlyawayReport) {
+    let nb = 1 + shape.lobe_count as usize;
+    let cols = clusters * nb;
     let (w, h) = measure.texels();
     let texels = w * h;
     let jitter = image_jitter(jitter_seed);
+    let basis_of = |g: &Geo| -> Vec<f64> {
+        let mut out = vec![g.kd_cos as f64];
+        for l in shape.lobes() {
+            let mut unit = *shape;
+            unit.kd = Vec3::ZERO;
+            unit.lobe_count = 1;
+            unit.lobes[0] = ClothLobe { k: Vec3::ONE, ..*l };
+            out.push(predict(&unit, g, reading).x as f64);
+        }
+        out
+    };
     let brdfs: Vec<_> = (0..texels).map(|j| model.levels[0].texel_brdf((j % w) as u32, (j / w) as u32)).collect();
     let mut rows: Vec<PixelRow> = Vec::new();
     for (c, pair) in training.pairs.iter().enumerate() {
@@ -256,16 +178,20 @@ pub fn fit_flyaways(
             .into_par_iter()
             .filter_map(|j| {
                 let (x, y) = (j % w, j / w);
-                let mut crossings = Vec::new();
+                let mut row = vec![0.0f64; cols];
                 let mut surface = Vec3::ZERO;
+                let mut crossed = false;
                 for s in 0..rays {
                     let (u, v) = jitter(j as u32, s);
                     let (o, d) = measure.sample_ray(x, y, u, v, pair.wo);
                     let probe = scene.probe_ray(&Ray::new(o, d), 0, true);
                     for f in &probe.flyaways {
+                        crossed = true;
                         let frame = cloth_fiber_frame(f.fiber, pair.wo);
-                        let geo = Geo::fiber(&frame, pair.wi, pair.wo, f.visibility, model.meta.fiber_lobes);
-                        crossings.push(Crossing { param: f.param, weight: f.weight / rays as f32, geo });
+                        let g = Geo::fiber(&frame, pair.wi, pair.wo, f.visibility, model.meta.fiber_lobes);
+                        for (b, value) in basis_of(&g).into_iter().enumerate() {
+                            row[f.param as usize * nb + b] += (f.weight / rays as f32) as f64 * value;
+                        }
                     }
                     if let Some(hit) = probe.surface {
                         let t = hit.texel.0 as usize + w * hit.texel.1 as usize;
@@ -275,24 +201,61 @@ pub fn fit_flyaways(
                         surface += hit.transmittance * hit.visibility * factor / rays as f32 * texel_response(b, pair.wi, pair.wo, reading, model.meta.diffuse);
                     }
                 }
-                (!crossings.is_empty()).then(|| PixelRow { target: image.pixels[j], residual: image.pixels[j] - surface, crossings })
+                crossed.then(|| PixelRow { target: image.pixels[j], residual: image.pixels[j] - surface, row })
             })
             .collect();
         rows.extend(batch);
     }
     let mut report = FlyawayReport { voxels: 0, clusters, pixels: rows.len(), error_without: 0.0, error_fitted: 0.0, problem: None, path_gain: None, transmittance_volume: None, transmittance_ungained: None };
+    let zero = vec![*shape; clusters];
     if rows.is_empty() || clusters == 0 {
         report.problem = Some("no training ray crosses a flyaway voxel".into());
-        return (vec![*shape; clusters], report);
+        return (zero, report);
     }
-    let solved = match solve_k(&rows, &vec![*shape; clusters], reading) {
-        Ok(s) => s,
-        Err(e) => {
-            report.problem = Some(e);
-            return (vec![*shape; clusters], report);
+    let mut gram = vec![0.0f64; cols * cols];
+    let mut atb = [vec![0.0f64; cols], vec![0.0f64; cols], vec![0.0f64; cols]];
+    let mut btb = [0.0f64; 3];
+    for r in &rows {
+        for a in 0..cols {
+            if r.row[a] == 0.0 {
+                continue;
+            }
+            for b in 0..cols {
+                gram[a * cols + b] += r.row[a] * r.row[b];
+            }
         }
-    };
-    let (params, fitted2) = (solved.params, solved.residual2);
+        let y = r.residual.as_dvec3().to_array();
+        for ch in 0..3 {
+            for (acc, x) in atb[ch].iter_mut().zip(&r.row) {
+                *acc += x * y[ch];
+            }
+            btb[ch] += y[ch] * y[ch];
+        }
+    }
+    // A tiny ridge keeps clusters no ray sees at zero instead of undetermined.
+    let trace: f64 = (0..cols).map(|a| gram[a * cols + a]).sum::<f64>() / cols as f64;
+    for a in 0..cols {
+        gram[a * cols + a] += 1e-6 * trace.max(1e-30);
+    }
+    let mut params = zero;
+    let mut fitted2 = 0.0;
+    for ch in 0..3 {
+        match nnls_gram(&gram, &atb[ch], btb[ch], cols) {
+            Ok(sol) => {
+                fitted2 += sol.residual2;
+                for (c, p) in params.iter_mut().enumerate() {
+                    p.kd[ch] = sol.x[c * nb] as f32;
+                    for j in 0..nb - 1 {
+                        p.lobes[j].k[ch] = sol.x[c * nb + 1 + j] as f32;
+                    }
+                }
+            }
+            Err(e) => {
+                report.problem = Some(format!("flyaway solve failed: {e}"));
+                return (vec![*shape; clusters], report);
+            }
+        }
+    }
     let target2: f64 = rows.iter().map(|r| (r.residual).as_dvec3().length_squared()).sum::<f64>();
     let pixel2: f64 = rows.iter().map(|r| r.target.as_dvec3().length_squared()).sum::<f64>().max(1e-30);
     report.error_without = (target2 / pixel2).sqrt();
