@@ -140,9 +140,10 @@ impl Default for FlyawayOptions {
         // blocks against 29.8% with opaque voxels (30.6% with no flyaways).
         // The path gain: held-out twill 26.6% → 26.3% (worst 33.2 → 32.0%), satin and
         // felt in baker/FIT_MEASUREMENTS.md ("The flyaways' opacity against the volume").
-        // The cylinder law: held-out satin 30.6% → 26.3% (64², K = 8; its mirror views
-        // 40–45% → 22–27%), felt 22.7 → 21.7%, twill 17.4 → 16.9% (baker/FIT_MEASUREMENTS.md,
-        // "The flyaways' lobes as cylinders").
+        // The cylinder law: held-out satin 29.2% → 24.7% at 64² (its mirror views 39–48% →
+        // 20–27%), felt 22.6 → 21.2%, twill 14.6 → 14.2%; far views at 70° 5.5–10.9% →
+        // 3.5–4.9% (baker/FIT_MEASUREMENTS.md and PREFILTER_MEASUREMENTS.md, "The
+        // flyaways' lobes as cylinders").
         FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder }
     }
 }
