@@ -69,7 +69,7 @@ void main() {
     } else if (e.kind == 3u) {
         // flyaways.glsl: the march (no light: transmittance and columns)
         uint sl = 0u;
-        FlyawayMarch m = march_flyaways(e.level, e.a.xyz, e.b.xyz, e.a.w, e.b.w, e.u.x, true, sl);
+        FlyawayMarch m = march_flyaways(e.level, e.a.xyz, e.b.xyz, e.a.w, e.b.w, e.u.x, FLY_LIGHT_ALL, sl);
         o.x = vec4(m.radiance, m.transmittance);
         o.y = vec4(float(m.columns), m.limited ? 1.0 : 0.0, 0.0, 0.0);
     } else if (e.kind == 4u) {

@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p fabric-baker --example far_view_parts MODEL.hyb [PIXELS]`;
 //! with `LEVELS=1` also each fixed level at 8×8 samples per pixel, `OPACITY=1` the mean
-//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone, `OPACITY_POLARS=0,30,…` at those angles), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine` (with `SWEEP=1` too; `SPLIT=1`: `split`), `AZIMUTH=deg` the far views' azimuth (0: pixel rows along the tile), `PART=surface` or `PART=flyaways` one part alone (`PART=through`: the flyaways black, the surface through and under them) (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
+//! flyaway opacity per level (`OPACITY_ONLY=1`: that alone, `OPACITY_POLARS=0,30,…` at those angles), `AS_IS_ONLY=1` the model as it is alone (`CHAIN_ONLY=1`: without the supersampled chains), `FINE=1` with `--coarse-filter fine` (with `SWEEP=1` too, every filter but `bilinear`, `SWEEP_FILTERS=a,b` those; `SPLIT=1`: `split`, `SHADED=1`: `split-shaded`), `AZIMUTH=deg` the far views' azimuth (0: pixel rows along the tile), `PART=surface` or `PART=flyaways` one part alone (`PART=through`: the flyaways black, the surface through and under them) (also with `SWEEP=1`), `SWEEP=1` the distance sweep alone (`SWEEP_AT=0.3,0.4`: steps at those texels per pixel instead;  `SWEEP_SS=1` its three nearest steps with the chain at 1, 2² and 4² samples per pixel; `SWEEP_LEVELS=4,32` at those steps the chain's mean over the truth's, its error at the truth's mean, and each fixed level at 4 × 4 samples per pixel), `IMAGES=DIR` a picture per far view (truth | chain | difference), `NODES=1` the flyaway
 //! nodes' responses at 70°; `OPACITY_IMAGES=POLAR` each fixed level's flyaway opacity and
 //! colour per pixel against level 0's; `ORACLE=POLAR` each fixed level with its coarse
 //! flyaway nodes shaded other ways (with `QUAD=1`, `SPLIT="q,c;…"`, `CHOOSE=1`,
@@ -36,7 +36,7 @@ fn views(model: &HybridModel, pixels: u32, label: &str) {
         let tpp = model.width() as f32 / pixels as f32 / polar.to_radians().cos().max(0.1);
         let f = ((tpp * 4.0 / 16.0).ceil() as u32).clamp(1, 64);
         let big = fabric_runtime::scene::Camera { width: camera.width * f, height: camera.height * f, ..camera };
-        let coarse_filter = if std::env::var("SPLIT").is_ok() { CoarseFilter::Split } else if std::env::var("FINE").is_ok() { CoarseFilter::Fine } else { CoarseFilter::Box };
+        let coarse_filter = if std::env::var("SHADED").is_ok() { CoarseFilter::SplitShaded } else if std::env::var("SPLIT").is_ok() { CoarseFilter::Split } else if std::env::var("FINE").is_ok() { CoarseFilter::Fine } else { CoarseFilter::Box };
         let opt = |level, ss| CpuRenderOptions { level, periodic: true, supersampling: ss, coarse_filter, ..Default::default() };
         let truth = render(model, &big, &light, &opt(LevelChoice::Fixed(0), 16)).unwrap().box_downsample(f);
         let chain = render(model, &camera, &light, &opt(LevelChoice::Auto { bias: 0.0 }, 1)).unwrap();
@@ -98,14 +98,15 @@ fn main() {
             sweep_supersampled(&model);
             return;
         }
-        // `FINE=1`: the sweep's eight steps with `--coarse-filter fine`, the box's and `split`'s.
+        // `FINE=1`: the sweep's eight steps with every `--coarse-filter` but `bilinear`
+        // (`SWEEP_FILTERS=split,split-shaded`: those).
         if std::env::var("FINE").is_ok() {
             use fabric_baker::prefilter::far_view::distance_sweep_filtered;
-            let fine = distance_sweep_filtered(&model, 32, 8, CoarseFilter::Fine).expect("the sweep");
-            let boxed = distance_sweep_filtered(&model, 32, 8, CoarseFilter::Box).expect("the sweep");
-            let split = distance_sweep_filtered(&model, 32, 8, CoarseFilter::Split).expect("the sweep");
-            for ((f, b), s) in fine.iter().zip(&boxed).zip(&split) {
-                println!("sweep {:5.2} texels/px: chain (fine) {:.2}%  (box) {:.2}%  (split) {:.2}%", f.texels_per_pixel, 100.0 * f.chain, 100.0 * b.chain, 100.0 * s.chain);
+            let names = std::env::var("SWEEP_FILTERS").unwrap_or_else(|_| "fine,box,split,split-shaded".into());
+            let sweeps: Vec<(&str, Vec<_>)> = names.split(',').map(|n| (n, distance_sweep_filtered(&model, 32, 8, CoarseFilter::from_name(n).expect("SWEEP_FILTERS: coarse filter names")).expect("the sweep"))).collect();
+            for step in 0..sweeps[0].1.len() {
+                let columns: Vec<String> = sweeps.iter().map(|(n, s)| format!("({n}) {:.2}%", 100.0 * s[step].chain)).collect();
+                println!("sweep {:5.2} texels/px: chain {}", sweeps[0].1[step].texels_per_pixel, columns.join("  "));
             }
             return;
         }

@@ -680,7 +680,9 @@ fn the_far_view_check_measures_the_coarse_filter_it_is_given() {
         let boxed = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Box).unwrap();
         let fine = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Fine).unwrap();
         let split = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::Split).unwrap();
-        assert_eq!(default, split, "the default check is the split filter's");
+        let shaded = far_view_filtered(&chain, polar, VIEW_AZIMUTH, 8, CoarseFilter::SplitShaded).unwrap();
+        assert_eq!(default, shaded, "the default check is the shaded split filter's");
+        assert!(shaded.chain.is_finite() && shaded.chain != split.chain, "{polar}°: split-shaded {} split {}", shaded.chain, split.chain);
         // The truth and level 0 do not depend on the filter; the chain does.
         assert_eq!((fine.level0, fine.truth_noise), (boxed.level0, boxed.truth_noise));
         assert!(fine.chain.is_finite() && fine.chain != boxed.chain, "{polar}°: fine {} box {}", fine.chain, boxed.chain);

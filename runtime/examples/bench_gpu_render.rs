@@ -93,7 +93,10 @@ fn frame_times(pass: &HybridPass, g: &GpuHybridModel, close: &dyn Fn(u32, u32) -
 /// The far view's frame time under each coarse filter, and each over the box's.
 fn far_by_filter(pass: &HybridPass, g: &GpuHybridModel, cam: &Camera, lights: &[Light], opts: &CpuRenderOptions) -> String {
     use fabric_runtime::cpu::CoarseFilter;
-    let ms: Vec<(&str, f64)> = [("box", CoarseFilter::Box), ("split", CoarseFilter::Split), ("fine", CoarseFilter::Fine), ("bilinear", CoarseFilter::Bilinear)]
+    let mut filters = CoarseFilter::NAMES;
+    // The box first: the ratios are over its time.
+    filters.sort_by_key(|(_, f)| *f != CoarseFilter::Box);
+    let ms: Vec<(&str, f64)> = filters
         .into_iter()
         .map(|(name, coarse_filter)| (name, median_ms(pass, g, cam, lights, &CpuRenderOptions { coarse_filter, ..opts.clone() }, None).0))
         .collect();

@@ -575,12 +575,13 @@ fn a_flyaway_grid_cell_holds_its_own_ray_and_lookups_keep_the_mean_transmittance
 }
 
 #[test]
-fn the_split_filter_changes_only_the_flyaways_of_views_with_a_flyaway_grid() {
+fn the_split_filters_change_only_the_flyaways_of_views_with_a_flyaway_grid() {
     // `CoarseFilter::Split`: the box grid's rays shaded, a 4 × 4 grid one level finer
     // marched unshaded for the coverage (render.rs, FlyCover) where the box grid's rays
-    // march a coarse level. A close-up (no flyaway grid), a view whose flyaway rays march
-    // level 0 and a model without flyaways draw the box filter's image bit for bit; a
-    // far view of flyaways does not.
+    // march a coarse level; `SplitShaded`: that grid shaded too, its light the
+    // flyaways'. A close-up (no flyaway grid), a view whose flyaway rays march level 0
+    // and a model without flyaways draw the box filter's image bit for bit; a far view
+    // of flyaways does not, and the two split filters draw different ones.
     let model = examples::synthetic_model(32, 3);
     let lights = [Light::directional(Vec3::new(-0.3, 0.2, 1.0), Vec3::ONE)];
     let opts = |coarse_filter| CpuRenderOptions { periodic: true, coarse_filter, ..Default::default() };
@@ -589,22 +590,51 @@ fn the_split_filter_changes_only_the_flyaways_of_views_with_a_flyaway_grid() {
     let near = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 0.15, 24, 24);
     let far = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 6.0, 32, 32);
     let at = |m: &fabric_runtime::hybrid::HybridModel, cam: &Camera, f| render(m, cam, &lights, &opts(f)).unwrap();
-    assert_eq!(at(&model, &near, CoarseFilter::Split).pixels, at(&model, &near, CoarseFilter::Box).pixels);
-    // About one texel per pixel: the flyaways' grid spreads, but its rays march level 0,
-    // whose voxels a finer grid would only supersample: no coverage grid, the box's image.
-    let mid = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 1.0, 32, 32);
-    let m = Scene::new(&model, &mid, &lights, opts(CoarseFilter::Split)).unwrap().level_mix(16.5, 16.5, model.tile.top_z);
-    assert!(m.fly_taps.0 * m.fly_taps.1 > 1 && m.fly == (0, 0, 0.0) && m.cover.is_none(), "{m:?}");
-    assert_eq!(at(&model, &mid, CoarseFilter::Split).pixels, at(&model, &mid, CoarseFilter::Box).pixels);
-    let scene = Scene::new(&model, &far, &lights, opts(CoarseFilter::Split)).unwrap();
-    let m = scene.level_mix(16.5, 16.5, model.tile.top_z);
-    let cover = m.cover.expect("a far view has a coverage grid");
-    assert!(cover.taps.0 * cover.taps.1 == 4 * m.fly_taps.0 * m.fly_taps.1 && cover.fly.0 <= m.fly.0, "{m:?}");
-    assert!(Scene::new(&model, &far, &lights, opts(CoarseFilter::Box)).unwrap().level_mix(16.5, 16.5, model.tile.top_z).cover.is_none());
-    let (split, boxed) = (at(&model, &far, CoarseFilter::Split), at(&model, &far, CoarseFilter::Box));
-    assert!(split.pixels.iter().all(|p| p.is_finite()));
-    assert!(split.pixels != boxed.pixels, "the flyaways' coverage came from the box grid");
     let mut bare = model.clone();
     bare.levels.iter_mut().for_each(|l| l.flyaways = None);
-    assert_eq!(at(&bare, &far, CoarseFilter::Split).pixels, at(&bare, &far, CoarseFilter::Box).pixels);
+    let mut images = Vec::new();
+    for split in [CoarseFilter::Split, CoarseFilter::SplitShaded] {
+        assert_eq!(at(&model, &near, split).pixels, at(&model, &near, CoarseFilter::Box).pixels);
+    // About one texel per pixel: the flyaways' grid spreads, but its rays march level 0,
+    // whose voxels a finer grid would only supersample: no coverage grid, the box's image.
+        let mid = Camera::orbit_orthographic(30.0, 30.0, centre, 40.0, 1.0, 32, 32);
+        let m = Scene::new(&model, &mid, &lights, opts(split)).unwrap().level_mix(16.5, 16.5, model.tile.top_z);
+        assert!(m.fly_taps.0 * m.fly_taps.1 > 1 && m.fly == (0, 0, 0.0) && m.cover.is_none(), "{m:?}");
+        assert_eq!(at(&model, &mid, split).pixels, at(&model, &mid, CoarseFilter::Box).pixels);
+        let scene = Scene::new(&model, &far, &lights, opts(split)).unwrap();
+        let m = scene.level_mix(16.5, 16.5, model.tile.top_z);
+        let cover = m.cover.expect("a far view has a coverage grid");
+        assert!(cover.taps.0 * cover.taps.1 == 4 * m.fly_taps.0 * m.fly_taps.1 && cover.fly.0 <= m.fly.0, "{m:?}");
+        assert!(Scene::new(&model, &far, &lights, opts(CoarseFilter::Box)).unwrap().level_mix(16.5, 16.5, model.tile.top_z).cover.is_none());
+        let (image, boxed) = (at(&model, &far, split), at(&model, &far, CoarseFilter::Box));
+        assert!(image.pixels.iter().all(|p| p.is_finite()));
+        assert!(image.pixels != boxed.pixels, "{split:?}: the flyaways came from the box grid");
+        assert_eq!(at(&bare, &far, split).pixels, at(&bare, &far, CoarseFilter::Box).pixels);
+        images.push(image);
+    }
+    assert!(images[0].pixels != images[1].pixels, "the shaded coverage grid changed nothing");
+    // They differ in the flyaways' light alone: with black fibres (k_d and every k zero,
+    // f16 bits 0) the coverage and the surface through it are the same image.
+    let mut dark = model.clone();
+    for level in dark.levels.iter_mut() {
+        if let Some(f) = level.flyaways.as_mut() {
+            f.table.headers.iter_mut().for_each(|h| h.kd = [0; 3]);
+            f.table.lobes.iter_mut().for_each(|l| l.k = [0; 3]);
+        }
+    }
+    let split_dark = at(&dark, &far, CoarseFilter::Split);
+    let shaded_dark = at(&dark, &far, CoarseFilter::SplitShaded);
+    assert_eq!(split_dark.pixels, shaded_dark.pixels, "black flyaways: the coverage and the surface are the same in both");
+    // `SplitShaded` shades the lights along the finer grid and an environment's SG part
+    // along the box grid, spread as `Split` spreads it: lit by the SG part alone (the
+    // sky prefiltered whole, no lights) the two are one image, and with a light they are
+    // not.
+    use fabric_runtime::scene::{EnvMapOptions, PrefilteredEnv, Sky};
+    let sky = Sky::default().env_map(EnvMapOptions::default()).unwrap();
+    let env = fabric_runtime::cpu::EnvLight::new(PrefilteredEnv::new(&sky));
+    let under = |f, lights: &[Light]| render(&model, &far, lights, &CpuRenderOptions { env: Some(env.clone()), ..opts(f) }).unwrap();
+    let (split_sky, shaded_sky) = (under(CoarseFilter::Split, &[]), under(CoarseFilter::SplitShaded, &[]));
+    assert!(split_sky.mean() > 1e-4);
+    assert_eq!(split_sky.pixels, shaded_sky.pixels, "the environment's SG part is spread alike");
+    assert!(under(CoarseFilter::Split, &lights).pixels != under(CoarseFilter::SplitShaded, &lights).pixels);
 }

@@ -184,8 +184,8 @@ fn gpu_matches_the_cpu_twin() {
     // 7) in both twins, and a different image from the box grid's.
     let bilinear = Case { name: "synthetic far, bilinear coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..opts.clone() } };
     assert_twins_agree(bilinear.name, &compare(&pass, &synthetic, &lights, &bilinear));
-    // The box filter (`--coarse-filter box`; the default, split, keeps its surface and
-    // shaded rays): the twins agree.
+    // The box filter (`--coarse-filter box`; the split filters keep its surface): the
+    // twins agree.
     let box_case = Case { name: "synthetic far, box coarse filter", camera: far_synth, options: CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Box, ..opts.clone() } };
     assert_twins_agree(box_case.name, &compare(&pass, &synthetic, &lights, &box_case));
     let boxed = render(&synthetic, &far_synth, &lights, &box_case.options).unwrap();
@@ -221,6 +221,20 @@ fn gpu_matches_the_cpu_twin() {
     assert!(from_box > 1e-2, "the felt's split image is the box filter's ({from_box})");
     assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
     assert_twins_agree(felt_far.name, &a);
+    // The shaded split filter (`--coarse-filter split-shaded`, the default;
+    // specialization constant 10): the coverage grid's rays shaded, the box grid's only
+    // landing. The twins agree on both far views, and its images are not split's.
+    for (model, case) in [(&synthetic, &split), (&felt, &felt_far)] {
+        let shaded = Case { name: if std::ptr::eq(model, &synthetic) { "synthetic far, split-shaded" } else { "baked felt far at 45°, split-shaded" }, camera: case.camera, options: CpuRenderOptions { coarse_filter: CoarseFilter::SplitShaded, ..case.options.clone() } };
+        assert_twins_agree(shaded.name, &compare(&pass, model, &lights, &shaded));
+        let apart = relative_rmse(&render(model, &shaded.camera, &lights, &shaded.options).unwrap(), &render(model, &case.camera, &lights, &case.options).unwrap()).unwrap();
+        assert!(apart > 1e-4, "{}: split's image ({apart})", shaded.name);
+    }
+    // Under the sky: the lights (its sun) along the cover grid, the SG part along the box
+    // grid (the tolerance of environment_light_matches_the_cpu_twin).
+    let sky_far = Case { name: "baked felt far at 45° under the sky, split-shaded", camera: felt_far.camera, options: CpuRenderOptions { coarse_filter: CoarseFilter::SplitShaded, env: Some(sky_light()), ..felt_far.options.clone() } };
+    let Agreement { rmse, differing: d, .. } = compare(&pass, &felt, &[], &sky_far);
+    assert!(rmse < 1e-2 && d < 0.005, "{}: relative RMSE {rmse}, {d} of pixels differ", sky_far.name);
     assert_no_validation_errors(&device);
 }
 

@@ -45,9 +45,10 @@ float flyaway_path_gain(GpuLevel l, vec3 d) {
 }
 
 // Marches the ray (o, d: unit, heading down) through the lists of `level` over
-// [t_start, t_end], shading each node it crosses at its entry point (`shaded` false: the
-// transmittance alone, radiance zero; the CPU's visit_flyaways without a visit).
-FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_end, uint max_columns, bool shaded, inout uint shadow_limited) {
+// [t_start, t_end], shading each node it crosses at its entry point with `light`
+// (FLY_LIGHT_*; FLY_LIGHT_NONE: the transmittance alone, radiance zero; the CPU's
+// visit_flyaways without a visit).
+FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_end, uint max_columns, uint light, inout uint shadow_limited) {
     FlyawayMarch out_ = FlyawayMarch(vec3(0.0), 1.0, 0u, false);
     if (isnan(t_end) || t_end <= t_start || d.z >= 0.0) {
         return out_;
@@ -164,7 +165,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
                 float opacity = flyaway_opacity(unorm16_value(nd.y >> 16), gain * (t_out - t_in), l.fly_edge);
                 if (opacity > 0.0) {
                     // Unshaded, nothing is queued: the walk runs to the end in one go.
-                    if (shaded) {
+                    if (light != FLY_LIGHT_NONE) {
                         q_t[qn] = t_in;
                         q_w[qn] = out_.transmittance * opacity;
                         q_node[qn] = nd.zw;
@@ -207,7 +208,7 @@ FlyawayMarch march_flyaways(uint level, vec3 o, vec3 d, float t_start, float t_e
         // The node's BRDF in its fiber frame, shadowed like a surface (the CPU's closure
         // in Scene::march_level_flyaways).
         for (uint i = 0u; i < qn; ++i) {
-            out_.radiance += q_w[i] * shade_fiber(level, q_node[i].y, octahedral_decode(q_node[i].x), q_spread[i], o + q_t[i] * d, -d, shadow_limited);
+            out_.radiance += q_w[i] * shade_fiber(level, q_node[i].y, octahedral_decode(q_node[i].x), q_spread[i], o + q_t[i] * d, -d, light, shadow_limited);
         }
     }
     return out_;

@@ -190,13 +190,23 @@ vec3 light_at(uint k, vec3 p, out vec3 wi, out float dist) {
     return light_incident(g_lights[k].vec, g_lights[k].power.xyz, p, wi, dist);
 }
 
+// The light a flyaway march shades its nodes with (bits: the lights, with an
+// environment's extracted sources; the environment's SG part). The split-shaded filter
+// shades the lights along its finer grid and the SG part along the box grid. Twin:
+// FlyLight (runtime/src/cpu/render.rs).
+const uint FLY_LIGHT_NONE = 0u;
+const uint FLY_LIGHT_LIGHTS = 1u;
+const uint FLY_LIGHT_ENV = 2u;
+const uint FLY_LIGHT_ALL = 3u;
+
 // Radiance leaving p toward wo from flyaway node (param, fiber) of `level`: its one axis
 // where `spread` is NO_NODE, else the mean over the node's spread axes, one or two groups
 // (axis_spread.glsl; `spread` the first word of its three in binding 6; unused axes
 // weigh 0), each light's visibility once; edited without rotation, lit by the
-// environment with the flyaway budget. Twin: the node closure of
-// Scene::march_level_flyaways (shade, or shade_blend over the axes).
-vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 wo, inout uint limited) {
+// environment with the flyaway budget; `light` (FLY_LIGHT_*) says which of the two.
+// Twin: the node closure of Scene::march_level_flyaways (shade, or shade_blend over the
+// axes).
+vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 wo, uint light, inout uint limited) {
     SpreadAxes s = single_axis(fiber);
     if (spread != NO_NODE) {
         s = packed_grouped_axes(fiber, fly_spread_word(spread), fly_spread_word(spread + 2u));
@@ -204,7 +214,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
     uint reading = model_reading();
     Edit e = hit_edit(p);
     vec3 radiance = vec3(0.0);
-    for (uint k = 0u; k < LIGHT_COUNT; ++k) {
+    for (uint k = 0u; k < ((light & FLY_LIGHT_LIGHTS) != 0u ? LIGHT_COUNT : 0u); ++k) {
         vec3 wi;
         float dist;
         vec3 irradiance = light_at(k, p, wi, dist);
@@ -227,7 +237,7 @@ vec3 shade_fiber(uint level, uint param, vec3 fiber, uint spread, vec3 p, vec3 w
         radiance += irradiance * response * light_factor(p, wi, dist, wo, true, false, limited);
     }
 #ifdef HYBRID_ENV
-    if (HAS_ENV) {
+    if (HAS_ENV && (light & FLY_LIGHT_ENV) != 0u) {
         for (int a = 0; a < MAX_SPREAD_AXES; ++a) {
             if (s.weights[a] > 0.0) {
                 radiance += s.weights[a] * texel_env_response(in_fiber_frame(level, param, s.axes[a], wo), e, false, wo, reading, false, CLOTH_DIFFUSE_LAMBERT, ENV_FLYAWAY_NODES, ENV_FLYAWAY_LOOKUPS);

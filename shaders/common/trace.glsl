@@ -45,13 +45,13 @@ bool enter_top(vec3 o, vec3 d, out float t) {
 
 // The flyaways of `level` over [t_top, t_end]; of a coarser level where the path crosses
 // more than GRAZING_COLUMNS of its columns (grazing_level).
-FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level_in, bool shaded, inout uint shadow_limited) {
+FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint level_in, uint light, inout uint shadow_limited) {
     float columns = (abs(d.x) * model.inv_texel.x + abs(d.y) * model.inv_texel.y) * (t_end - t_top);
     uint level = grazing_level(level_in, columns, model.level_count - 1u);
     if (!HAS_FLYAWAYS || model.levels[level].fly_nodes == 0u) {
         return FlyawayMarch(vec3(0.0), 1.0, 0u, false);
     }
-    return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, shaded, shadow_limited);
+    return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, light, shadow_limited);
 }
 
 // The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
@@ -211,7 +211,9 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     }
     // The split filter: after the box grid's shaded rays, the cover grid's unshaded
     // ones give the coverage (Scene::trace_mixed's `Split`): each box ray's colour is
-    // spread over the opacity of the cover rays in its cell.
+    // spread over the opacity of the cover rays in its cell. Split-shaded
+    // (FLY_COVER_SHADED): the cover rays are shaded and bring the light too; the box
+    // rays only land (their hits are level 0's lookups).
     uint cga = mix_.cover_taps_a;
     uint cgb = mix_.cover_taps_b;
     bool split = FLY_COVER_GRID != FLY_GRID && HAS_FLYAWAYS && cga * cgb > 0u && fga * fgb > 1u && fga * fgb <= MAX_SPLIT_RAYS;
@@ -259,10 +261,17 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                 }
             }
         }
+        // Split-shaded: the box rays bring the environment's SG part alone (smooth
+        // enough for their coarser grid), and without an environment only land.
+        bool shaded_cover = split && FLY_COVER_SHADED;
+        if (shaded_cover && !cover && !HAS_ENV) {
+            continue;
+        }
         float weight_hi = cover ? mix_.cover_weight : mix_.fly_weight;
         float w = levels == 2u ? (lk == 0u ? 1.0 - weight_hi : weight_hi) : 1.0;
         uint level = cover ? (lk == 0u ? mix_.cover_lo : mix_.cover_hi) : (lk == 0u ? mix_.fly_lo : mix_.fly_hi);
-        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, ray_end, level, !cover, shadow_limited);
+        uint light = cover ? (shaded_cover ? FLY_LIGHT_LIGHTS : FLY_LIGHT_NONE) : (shaded_cover ? FLY_LIGHT_ENV : FLY_LIGHT_ALL);
+        FlyawayMarch fly = march_level_flyaways(ro, d, t_top, ray_end, level, light, shadow_limited);
         ray_radiance = lk == 0u ? fly.radiance * w : ray_radiance + fly.radiance * w;
         ray_transmittance = lk == 0u ? fly.transmittance * w : ray_transmittance + fly.transmittance * w;
         out_.step_limited = out_.step_limited || fly.limited;
@@ -272,12 +281,18 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
                 uint c = fly_cell(offset, mix_.fly_axis_a, fga, mix_.fly_axis_b, fgb);
                 cell_o[c] += 1.0 - ray_transmittance;
                 cell_n[c] += 1u;
+                if (FLY_COVER_SHADED) {
+                    fly_radiance += ray_radiance / float(cga * cgb);
+                }
                 continue;
             }
             if (split) {
+                // The cover rays give the coverage (below).
                 box_rgb[ray] = ray_radiance;
                 box_t[ray] = ray_transmittance;
-            } else if (ray < MAX_FLY_RAYS) {
+                continue;
+            }
+            if (ray < MAX_FLY_RAYS) {
                 fly_t[ray] = ray_transmittance;
             }
             fly_radiance += ray_radiance * share;
@@ -285,7 +300,14 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
         }
     }
     if (split) {
-        fly_radiance = spread_colours(box_rays, box_rgb, box_t, cell_o, cell_n);
+        // Split-shaded: fly_radiance holds the cover rays' light; the box rays' (the
+        // environment's part, or nothing) is spread as split spreads it.
+        vec3 spread = spread_colours(box_rays, box_rgb, box_t, cell_o, cell_n);
+        if (FLY_COVER_SHADED) {
+            fly_radiance = fly_radiance + spread;
+        } else {
+            fly_radiance = spread;
+        }
         float sum = 0.0;
         for (uint k = 0u; k < cga * cgb; ++k) {
             sum += fly_t[k];

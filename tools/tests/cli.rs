@@ -172,19 +172,21 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
     // The twins agree (runtime/tests/gpu_hybrid.rs states the tolerance).
     let rmse = fabric_runtime::metrics::relative_rmse(&images[0], &images[1]).unwrap();
     assert!(rmse < 0.07, "GPU vs CPU relative RMSE {rmse}");
-    // From afar with `--coarse-filter split` (the flyaways' coverage from a finer grid),
-    // on both backends alike.
-    let far: Vec<_> = ["auto", "cpu"]
-        .iter()
-        .map(|backend| {
-            let out = tmp(&format!("synthetic-far-split-{backend}.exr"));
-            let o = fabric().arg("render").arg(&model).args(["--view-angles", "45,30", "--periodic", "--extent", "12", "--size", "32x32", "--coarse-filter", "split", "--backend", backend, "--out"]).arg(&out).output().unwrap();
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            fabric_runtime::image::Image::read(&out, 1.0).unwrap()
-        })
-        .collect();
-    let rmse = fabric_runtime::metrics::relative_rmse(&far[0], &far[1]).unwrap();
-    assert!(far[1].mean() > 1e-4 && rmse < 0.07, "split, GPU vs CPU relative RMSE {rmse}");
+    // From afar with `--coarse-filter split` (the flyaways' coverage from a finer grid)
+    // and `split-shaded` (their light from it too), on both backends alike.
+    for filter in ["split", "split-shaded"] {
+        let far: Vec<_> = ["auto", "cpu"]
+            .iter()
+            .map(|backend| {
+                let out = tmp(&format!("synthetic-far-{filter}-{backend}.exr"));
+                let o = fabric().arg("render").arg(&model).args(["--view-angles", "45,30", "--periodic", "--extent", "12", "--size", "32x32", "--coarse-filter", filter, "--backend", backend, "--out"]).arg(&out).output().unwrap();
+                assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+                fabric_runtime::image::Image::read(&out, 1.0).unwrap()
+            })
+            .collect();
+        let rmse = fabric_runtime::metrics::relative_rmse(&far[0], &far[1]).unwrap();
+        assert!(far[1].mean() > 1e-4 && rmse < 0.07, "{filter}, GPU vs CPU relative RMSE {rmse}");
+    }
     // On a mesh: the GPU only, and a clear error from the CPU backend.
     let out = tmp("synthetic-sphere.png");
     let o = fabric().arg("render").arg(&model).args(["--mesh", "sphere", "--uv-scale", "4,2", "--size", "64x64", "--out"]).arg(&out).output().unwrap();

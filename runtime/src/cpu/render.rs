@@ -20,7 +20,7 @@ use super::env_shading::{EnvBudget, texel_env_response, transmission_env_respons
 use crate::brdf::visible_normal::{tilt_frames, view_visibility};
 use super::shading::{in_fiber_frame, shade, shade_blend, volume_factor};
 use super::edits::Edit;
-use super::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
+use super::{CpuRenderError, CpuRenderOptions, LevelChoice, RenderStats, ShadowMode};
 // The level rules live in level.rs; re-exported here, where they were first written.
 pub use super::level::*;
 use crate::brdf::{BrdfReading, DiffuseLaw};
@@ -88,6 +88,18 @@ pub fn spread_colours(box_rays: &[(Vec3, f32)], cell_opacity: &[(f32, u32)]) -> 
             colour * cover_o * share
         })
         .sum()
+}
+
+/// The light a flyaway march shades its nodes with: `SplitShaded` shades the lights
+/// along its finer grid and the environment's SG part along the box grid. Twin:
+/// FLY_LIGHT_* in shaders/common/shading.glsl.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FlyLight {
+    All,
+    /// The lights (with an environment's extracted sources), not its SG part.
+    Lights,
+    /// The environment's SG part alone.
+    Env,
 }
 
 /// One level's flyaways along a ray.
@@ -216,7 +228,7 @@ impl<'a> Scene<'a> {
         // 16 rays only supersample them (the demo's sphere, 1–3 texels per pixel, cost 3×
         // the box's frame on lavapipe with them; baker/PREFILTER_MEASUREMENTS.md, "The
         // split filter as the default").
-        let cover = (self.options.coarse_filter == CoarseFilter::Split && fly_grid.spread > 0.0 && fly_grid.lambda > 0.0)
+        let cover = (self.options.coarse_filter.cover_grid() != self.options.coarse_filter.fly_grid() && fly_grid.spread > 0.0 && fly_grid.lambda > 0.0)
             .then(|| fly_box_grid(major, n, bias, self.options.coarse_filter.cover_grid()))
             .filter(|c| c.spread > 0.0)
             .map(|c| FlyCover { fly: linear_levels(c.lambda, last), axes: (axis * c.spread, minor_axis * c.spread), taps: (c.taps_major, c.taps_minor) });
@@ -421,7 +433,6 @@ impl<'a> Scene<'a> {
         out.level = Some(mix.lo);
         let t_end = out.surface_t.unwrap_or(t_top + self.model.tile.height_scale / -ray.d.z);
         // The flyaways in front, blended over their levels, then what they let through.
-        let (fl, fh, fw) = mix.fly;
         // Over a box grid (`fly_taps` parallel rays spread over `fly_axes`), each ray
         // blending its two levels and stopping where it meets the surface itself; one ray
         // where there is no grid.
@@ -435,6 +446,12 @@ impl<'a> Scene<'a> {
         let mut fly_hits: Vec<Option<Vec3>> = Vec::new();
         // ... and with `Split`, each one's radiance and transmittance (its colour).
         let mut box_rays: Vec<(Vec3, f32)> = Vec::new();
+        let covered = mix.cover.is_some() && ga * gb > 1 && self.options.flyaways && self.model.has_flyaways();
+        // `SplitShaded`: the cover grid's rays bring the lights' light; the box rays land
+        // and bring the environment's SG part, smooth enough for their coarser grid (with
+        // no environment they only land).
+        let shaded_cover = covered && self.options.coarse_filter.cover_shaded();
+        let box_light = if shaded_cover { FlyLight::Env } else { FlyLight::All };
         for k in 0..ga * gb {
             let (r, t_end) = if ga * gb == 1 {
                 (*ray, t_end)
@@ -444,14 +461,10 @@ impl<'a> Scene<'a> {
                 fly_hits.push(landed.then(|| r.at(t_end)));
                 (r, t_end)
             };
-            let mut f = self.march_level_flyaways(&r, t_top, t_end, fl);
-            if fw > 0.0 && fh != fl {
-                let hi = self.march_level_flyaways(&r, t_top, t_end, fh);
-                f.radiance = f.radiance * (1.0 - fw) + hi.radiance * fw;
-                f.transmittance = f.transmittance * (1.0 - fw) + hi.transmittance * fw;
-                f.limited |= hi.limited;
-                f.shadow_limited += hi.shadow_limited;
+            if shaded_cover && self.options.env.is_none() {
+                continue;
             }
+            let f = self.march_blended_flyaways(&r, t_top, t_end, mix.fly, box_light);
             if ga * gb > 1 {
                 fly_rays.push(f.transmittance);
                 if mix.cover.is_some() {
@@ -464,26 +477,37 @@ impl<'a> Scene<'a> {
             fly.shadow_limited += f.shadow_limited;
         }
         // `Split`: the coverage from the finer grid's unshaded rays, each box ray's
-        // colour spread over the opacity of the fine rays in its cell.
+        // colour spread over the opacity of the fine rays in its cell; `SplitShaded`: the
+        // coverage and the lights' light from the finer grid's rays, the environment's
+        // spread so.
         // (The box rays' hits stay level 0's to borrow: the surface is the box filter's.)
         let hits_grid = ((fa, fb), (ga, gb));
         let ((fa, fb), (ga, gb)) = match mix.cover {
-            Some(c) if ga * gb > 1 && self.options.flyaways && self.model.has_flyaways() => {
+            Some(c) if covered => {
                 let (cl, ch, cw) = c.fly;
                 let (ca, cb) = (c.taps.0.max(1), c.taps.1.max(1));
                 let mut cell_opacity = vec![(0.0f32, 0u32); (ga * gb) as usize];
+                let mut cover_radiance = Vec3::ZERO;
                 let mut rays = Vec::with_capacity((ca * cb) as usize);
                 for k in 0..ca * cb {
                     let offset = tap_offset(c.axes.0, ca, c.axes.1, cb, k);
                     let r = Ray::new(ray.o + offset.extend(0.0), ray.d);
                     let (t_end, _) = self.own_surface_end(&r, t_top, t_end, floor, &mut out);
-                    let (t, limited) = self.level_coverage(&r, t_top, t_end, cl, ch, cw);
+                    let (t, limited) = if shaded_cover {
+                        let f = self.march_blended_flyaways(&r, t_top, t_end, c.fly, FlyLight::Lights);
+                        cover_radiance += f.radiance;
+                        fly.shadow_limited += f.shadow_limited;
+                        (f.transmittance, f.limited)
+                    } else {
+                        self.level_coverage(&r, t_top, t_end, cl, ch, cw)
+                    };
                     fly.limited |= limited;
                     rays.push(t);
                     let cell = &mut cell_opacity[fly_cell(offset, fa, ga, fb, gb) as usize];
                     *cell = (cell.0 + 1.0 - t, cell.1 + 1);
                 }
-                fly.radiance = spread_colours(&box_rays, &cell_opacity);
+                let spread = if box_rays.is_empty() { Vec3::ZERO } else { spread_colours(&box_rays, &cell_opacity) };
+                fly.radiance = if shaded_cover { cover_radiance / (ca * cb) as f32 + spread } else { spread };
                 fly.transmittance = rays.iter().sum::<f32>() / rays.len() as f32;
                 fly_rays = rays;
                 (c.axes, (ca, cb))
@@ -596,10 +620,26 @@ impl<'a> Scene<'a> {
         grazing_level(level, columns, self.model.levels.len() - 1)
     }
 
+    /// The flyaways over [t_top, t_end] blended over the levels `(lo, hi, weight of hi)`,
+    /// shaded with `light`.
+    fn march_blended_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, (lo, hi, w): (usize, usize, f32), light: FlyLight) -> FlyShade {
+        let mut f = self.march_level_flyaways(ray, t_top, t_end, lo, light);
+        if w > 0.0 && hi != lo {
+            let h = self.march_level_flyaways(ray, t_top, t_end, hi, light);
+            f.radiance = f.radiance * (1.0 - w) + h.radiance * w;
+            f.transmittance = f.transmittance * (1.0 - w) + h.transmittance * w;
+            f.limited |= h.limited;
+            f.shadow_limited += h.shadow_limited;
+        }
+        f
+    }
+
     /// The flyaways of `level` (or the coarser level of [`Scene::grazing_level`]) over
     /// [t_top, t_end], composited front to back.
-    fn march_level_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize) -> FlyShade {
+    fn march_level_flyaways(&self, ray: &Ray, t_top: f32, t_end: f32, level: usize, light: FlyLight) -> FlyShade {
         let level = self.grazing_level(ray, t_top, t_end, level);
+        let lights = if light == FlyLight::Env { &[][..] } else { self.lights };
+        let env = light != FlyLight::Lights;
         let wo = -ray.d;
         let mut out = FlyShade { radiance: Vec3::ZERO, transmittance: 1.0, limited: false, shadow_limited: 0 };
         if !self.options.flyaways {
@@ -617,7 +657,8 @@ impl<'a> Scene<'a> {
                 let axes = f.node_axes(index);
                 if axes.weights[0] >= 1.0 {
                     let b = fiber(axes.axes[0]);
-                    return shade(&b, p, wo, self.lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + self.env_response(&b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY);
+                    let from_env = if env { self.env_response(&b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY) } else { Vec3::ZERO };
+                    return shade(&b, p, wo, lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + from_env;
                 }
                 // A coarse node's spread axes, one or two groups (brdf::axis_spread): their
                 // mean response, each light's visibility once. A fixed array: this runs per
@@ -629,7 +670,8 @@ impl<'a> Scene<'a> {
                     n += 1;
                 }
                 let texels = &texels[..n];
-                shade_blend(texels, p, wo, self.lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY)).sum::<Vec3>()
+                let from_env = if env { texels.iter().map(|(b, w)| *w * self.env_response(b, wo, false, DiffuseLaw::Lambert, EnvBudget::FLYAWAY)).sum::<Vec3>() } else { Vec3::ZERO };
+                shade_blend(texels, p, wo, lights, self.reading, DiffuseLaw::Lambert, |p, s| self.visibility(p, s, &mut shadow_limited)) + from_env
             });
             out = FlyShade { radiance: march.radiance, transmittance: march.transmittance, limited: march.limited, shadow_limited };
         }

@@ -70,15 +70,18 @@ pub struct Variant {
     /// Rays per axis of the grid that gives their coverage (`CoarseFilter::cover_grid`;
     /// `fly_grid`: the same rays).
     pub cover_grid: u32,
+    /// Whether the coverage grid's rays are shaded, their light the flyaways'
+    /// (`CoarseFilter::cover_shaded`).
+    pub cover_shaded: bool,
 }
 
 impl Variant {
     fn specialization(&self) -> Specialization {
-        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8)).bool(5, self.env).bool(6, self.transmission).u32(7, self.filter_grid.max(1)).u32(8, self.fly_grid.max(1)).u32(9, self.cover_grid.max(1))
+        Specialization::new().bool(0, self.flyaways && self.relief).bool(1, self.shadows).u32(2, self.lights).bool(3, self.relief).u32(4, self.lobes.clamp(1, 8)).bool(5, self.env).bool(6, self.transmission).u32(7, self.filter_grid.max(1)).u32(8, self.fly_grid.max(1)).u32(9, self.cover_grid.max(1)).bool(10, self.cover_shaded)
     }
 
     fn name(&self, pass: &str) -> String {
-        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes, env {}, transmission {}, filter grid {}, flyaway grid {}, coverage grid {})", self.flyaways, self.shadows, self.lights, self.relief, self.lobes, self.env, self.transmission, self.filter_grid, self.fly_grid, self.cover_grid)
+        format!("{pass} (flyaways {}, shadows {}, {} lights, relief {}, {} lobes, env {}, transmission {}, filter grid {}, flyaway grid {}, coverage grid {}, coverage shaded {})", self.flyaways, self.shadows, self.lights, self.relief, self.lobes, self.env, self.transmission, self.filter_grid, self.fly_grid, self.cover_grid, self.cover_shaded)
     }
 }
 
@@ -226,7 +229,7 @@ impl HybridPass {
     /// transmission term only where the model has one and a light may be behind the
     /// sheet (`behind`).
     pub fn variant(model: &GpuHybridModel, lights: &[Light], behind: bool, shadows: bool, options: &CpuRenderOptions) -> Variant {
-        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights.len() as u32, relief: true, lobes: model.max_lobes, env: options.env.is_some(), transmission: model.has_transmission && behind, filter_grid: options.coarse_filter.grid(), fly_grid: options.coarse_filter.fly_grid(), cover_grid: options.coarse_filter.cover_grid() }
+        Variant { flyaways: model.has_flyaways && options.flyaways, shadows, lights: lights.len() as u32, relief: true, lobes: model.max_lobes, env: options.env.is_some(), transmission: model.has_transmission && behind, filter_grid: options.coarse_filter.grid(), fly_grid: options.coarse_filter.fly_grid(), cover_grid: options.coarse_filter.cover_grid(), cover_shaded: options.coarse_filter.cover_shaded() }
     }
 
     /// Whether any of `lights` can be behind the tile's sheet (below its top plane, z up):

@@ -106,23 +106,19 @@ pub struct PrefilterCmdArgs {
     #[arg(long)]
     pub check: bool,
     /// The renderer's coarse filter that --check measures (as `render --coarse-filter`).
-    #[arg(long, default_value = "split", value_parser = ["box", "fine", "split", "bilinear"])]
+    #[arg(long, default_value = "split-shaded", value_parser = ["split-shaded", "split", "box", "fine", "bilinear"])]
     pub check_filter: String,
     #[command(flatten)]
     pub prefilter: PrefilterArgs,
 }
 
 /// Prints the far-view and sweep errors of `model` with the chain rendered through
-/// `filter` ("box", "fine", "split" or "bilinear"); returns them for the report.
+/// `filter` (a `CoarseFilter::NAMES` name); returns them for the report.
 pub fn check_chain(model: &fabric_runtime::hybrid::HybridModel, filter: &str) -> Result<serde_json::Value> {
     use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, distance_sweep_filtered, far_view_filtered};
     use fabric_runtime::cpu::CoarseFilter;
-    let coarse = match filter {
-        "box" => CoarseFilter::Box,
-        "fine" => CoarseFilter::Fine,
-        "split" => CoarseFilter::Split,
-        "bilinear" => CoarseFilter::Bilinear,
-        other => anyhow::bail!("--check-filter {other}: box, fine, split or bilinear"),
+    let Some(coarse) = CoarseFilter::from_name(filter) else {
+        anyhow::bail!("--check-filter {filter}: one of {}", CoarseFilter::NAMES.map(|(n, _)| n).join(", "));
     };
     println!("far views, coarse filter {filter} (relative RMSE against level 0 at >= 4x4 samples per texel): auto levels 1 spp | nearest level 1 spp | level 0 1 spp | truth's own noise");
     let mut views = Vec::new();

@@ -44,14 +44,18 @@ pub struct CpuRenderFlags {
     /// relief finer than a pixel flattened (off: exact at every distance).
     #[arg(long)]
     pub coarse_relief: bool,
-    /// How coarse levels are filtered: "split" (the default: a 2×2 grid of lookups one
-    /// level finer, closer to the pixel's box, the flyaways shaded along 2×2 rays and
-    /// their coverage from a 4×4 grid of rays one level finer, marched unshaded),
-    /// "box" (the flyaways' coverage from the 2×2 rays too: far views summed 20% higher,
-    /// at half a distant frame's time under one light, runtime/GPU_MEASUREMENTS.md),
-    /// "fine" (the flyaways shaded along the 4×4 grid: closer still, 2–3× the box's time
-    /// far away) or "bilinear" (one lookup per anisotropic tap: cheaper far away).
-    #[arg(long, default_value = "split", value_parser = ["box", "fine", "split", "bilinear"])]
+    /// How coarse levels are filtered: "split-shaded" (the default: a 2×2 grid of
+    /// lookups one level finer, closer to the pixel's box, where 2×2 parallel rays land;
+    /// the flyaways' coverage and the lights' light from a 4×4 grid of rays one level
+    /// finer, an environment's SG part from the 2×2 rays),
+    /// "split" (the flyaways' light from the 2×2 rays, spread over the 4×4 grid's
+    /// coverage marched unshaded: cheaper, far views up to 1.6 points worse),
+    /// "box" (the flyaways' coverage from the 2×2 rays too: far views summed 20% higher
+    /// than split's, at half a distant frame's time under one light,
+    /// runtime/GPU_MEASUREMENTS.md), "fine" (the flyaways along the 4×4 grid and level
+    /// 0's lookups where those rays land) or "bilinear" (one lookup per anisotropic tap:
+    /// cheaper far away).
+    #[arg(long, default_value = "split-shaded", value_parser = ["split-shaded", "split", "box", "fine", "bilinear"])]
     pub coarse_filter: String,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
@@ -114,13 +118,8 @@ impl CpuRenderFlags {
             max_steps: self.max_steps,
             flyaways: !self.no_flyaways,
             coarse_relief: self.coarse_relief,
-            coarse_filter: match self.coarse_filter.as_str() {
-                "bilinear" => CoarseFilter::Bilinear,
-                "fine" => CoarseFilter::Fine,
-                "box" => CoarseFilter::Box,
-                // clap's value parser admits nothing else.
-                _ => CoarseFilter::Split,
-            },
+            // clap's value parser admits nothing else.
+            coarse_filter: CoarseFilter::from_name(&self.coarse_filter).unwrap_or_default(),
             edits,
             ..Default::default()
         })
@@ -210,7 +209,7 @@ mod tests {
         let camera = CameraArgs { view_angles: Some((30.0, -90.0)), size: (32, 24), up: glam::Vec3::Z, ..Default::default() };
         let light = LightArgs { light_angles: Some((20.0, 40.0)), irradiance: glam::Vec3::ONE, intensity: glam::Vec3::ONE, ..Default::default() };
         let output = OutputArgs { out: dir.join("out.exr"), exposure: 1.0 };
-        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, coarse_filter: "split".into(), tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
+        let flags = CpuRenderFlags { level: LevelFlag::Auto, level_bias: 0.0, periodic: true, shadows: "on".into(), supersample: 1, max_steps: 4096, no_flyaways: false, coarse_relief: false, coarse_filter: "split-shaded".into(), tint: glam::Vec3::ONE, roughness_scale: 1.0, tangent_rotation: 0.0, edit_mask: None };
         run(&model, &camera, &light, &EnvArgs::default(), &output, &flags).unwrap();
         let image = fabric_runtime::image::Image::read(&output.out, 1.0).unwrap();
         assert_eq!((image.width, image.height), (32, 24));
