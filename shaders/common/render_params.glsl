@@ -87,9 +87,9 @@ layout(constant_id = 8) const uint FLY_GRID = 2u;
 // differs from FLY_GRID (the split filter's 4; level.glsl, LevelMix's cover_*). Twin:
 // CoarseFilter::cover_grid.
 layout(constant_id = 9) const uint FLY_COVER_GRID = 2u;
-// Whether the coverage grid's rays are shaded too, their light replacing the shading
-// grid's (the split-shaded filter; the box grid's rays then only land). Twin:
-// CoarseFilter::cover_shaded.
+// Whether the coverage grid's rays are shaded too, with the lights (the split-shaded
+// filter; the box grid's rays then shade an environment's SG part alone, or only land).
+// Twin: CoarseFilter::cover_shaded.
 layout(constant_id = 10) const bool FLY_COVER_SHADED = false;
 
 #endif // RENDER_PARAMS_GLSL

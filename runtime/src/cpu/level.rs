@@ -42,15 +42,15 @@ pub struct LevelMix {
     pub fine_axes: (Vec2, Vec2),
     pub fine_taps: (u32, u32),
     /// `CoarseFilter::Split` and `SplitShaded`: the finer grid of rays that gives the
-    /// flyaways' coverage (and with `SplitShaded` their light; None: the shading grid's
-    /// own).
+    /// flyaways' coverage (and with `SplitShaded` the lights' light; None: the shading
+    /// grid's own).
     pub cover: Option<FlyCover>,
 }
 
 /// The flyaways' coverage grid of `CoarseFilter::Split`: `taps.0` × `taps.1` parallel
 /// rays over `axes` (as [`tap_offset`] places them), each marching the levels `fly`
-/// (lo, hi, weight of hi) for its transmittance alone, unshaded (`SplitShaded`: shaded,
-/// and their light is the flyaways').
+/// (lo, hi, weight of hi) for its transmittance alone, unshaded (`SplitShaded`: shaded
+/// with the lights).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FlyCover {
     pub fly: (usize, usize, f32),

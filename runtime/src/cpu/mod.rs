@@ -112,11 +112,6 @@ impl CoarseFilter {
         Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, f)| *f)
     }
 
-    /// The command-line name.
-    pub fn name(self) -> &'static str {
-        Self::NAMES.iter().find(|(_, f)| *f == self).map_or("split-shaded", |(n, _)| n)
-    }
-
     /// Lookups per axis of the surface's grid (1: none).
     pub fn grid(self) -> u32 {
         match self {
@@ -135,8 +130,8 @@ impl CoarseFilter {
         }
     }
 
-    /// Whether the coverage grid's rays are shaded, their light replacing the shading
-    /// grid's (`SplitShaded`).
+    /// Whether the coverage grid's rays are shaded with the lights, the shading grid's
+    /// with an environment's SG part alone (`SplitShaded`).
     pub fn cover_shaded(self) -> bool {
         self == CoarseFilter::SplitShaded
     }

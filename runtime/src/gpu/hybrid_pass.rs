@@ -70,7 +70,7 @@ pub struct Variant {
     /// Rays per axis of the grid that gives their coverage (`CoarseFilter::cover_grid`;
     /// `fly_grid`: the same rays).
     pub cover_grid: u32,
-    /// Whether the coverage grid's rays are shaded, their light the flyaways'
+    /// Whether the coverage grid's rays are shaded with the lights
     /// (`CoarseFilter::cover_shaded`).
     pub cover_shaded: bool,
 }
