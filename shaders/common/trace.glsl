@@ -212,8 +212,9 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     // The split filter: after the box grid's shaded rays, the cover grid's unshaded
     // ones give the coverage (Scene::trace_mixed's `Split`): each box ray's colour is
     // spread over the opacity of the cover rays in its cell. Split-shaded
-    // (FLY_COVER_SHADED): the cover rays are shaded and bring the light too; the box
-    // rays only land (their hits are level 0's lookups).
+    // (FLY_COVER_SHADED): the cover rays are shaded with the lights; the box rays bring
+    // an environment's SG part alone, spread so, and land (their hits are level 0's
+    // lookups).
     uint cga = mix_.cover_taps_a;
     uint cgb = mix_.cover_taps_b;
     bool split = FLY_COVER_GRID != FLY_GRID && HAS_FLYAWAYS && cga * cgb > 0u && fga * fgb > 1u && fga * fgb <= MAX_SPLIT_RAYS;

@@ -106,7 +106,7 @@ pub struct PrefilterCmdArgs {
     #[arg(long)]
     pub check: bool,
     /// The renderer's coarse filter that --check measures (as `render --coarse-filter`).
-    #[arg(long, default_value = "split-shaded", value_parser = ["split-shaded", "split", "box", "fine", "bilinear"])]
+    #[arg(long, default_value = "split-shaded", value_parser = clap::builder::PossibleValuesParser::new(fabric_runtime::cpu::CoarseFilter::NAMES.map(|(n, _)| n)))]
     pub check_filter: String,
     #[command(flatten)]
     pub prefilter: PrefilterArgs,

@@ -55,7 +55,7 @@ pub struct CpuRenderFlags {
     /// runtime/GPU_MEASUREMENTS.md), "fine" (the flyaways along the 4×4 grid and level
     /// 0's lookups where those rays land) or "bilinear" (one lookup per anisotropic tap:
     /// cheaper far away).
-    #[arg(long, default_value = "split-shaded", value_parser = ["split-shaded", "split", "box", "fine", "bilinear"])]
+    #[arg(long, default_value = "split-shaded", value_parser = clap::builder::PossibleValuesParser::new(CoarseFilter::NAMES.map(|(n, _)| n)))]
     pub coarse_filter: String,
     /// Edit: multiply the albedo and every lobe's strength (V or R,G,B, linear).
     #[arg(long, value_parser = crate::args::parse_rgb, default_value = "1")]
