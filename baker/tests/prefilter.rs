@@ -3,7 +3,7 @@
 
 use fabric_baker::prefilter::far_view::far_camera_at;
 use fabric_baker::prefilter::flyaways::Coverage;
-use fabric_baker::prefilter::lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
+use fabric_baker::prefilter::lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, WidthFloor, fit_footprint};
 use fabric_baker::prefilter::pairs::fit_pairs;
 use fabric_baker::prefilter::{PrefilterError, PrefilterOptions, prefilter};
 use fabric_baker::progress::NoProgress;
@@ -121,6 +121,38 @@ fn the_lobe_sweep_fits_past_the_budget_without_changing_the_kept_fit() {
     assert!(e.windows(2).all(|w| w[1] <= w[0]), "never worse with more lobes allowed: {e:?}");
     // Seven groups (the diffuse lobe and the six) hold the footprint exactly.
     assert!(e[7] < 0.01 * e[1], "8 lobes {} against 2 lobes {}", e[7], e[1]);
+}
+
+#[test]
+fn coarse_lobes_are_no_narrower_than_their_footprints_narrowest() {
+    // Two wide lobes of crossing yarns, and a target with one bright outlier at a pair
+    // (a narrow fibre highlight the footprint's lobes do not hold, or noise): a free β
+    // would collapse to a spike on that pair and shine where no pair looks.
+    let pairs = fit_pairs(128, 5);
+    let n = Vec3::new(0.1, -0.05, 1.0);
+    let candidates = vec![candidate(n, Vec3::X, 0.3), candidate(n, Vec3::Y, 0.45)];
+    let floor = WidthFloor::of(&candidates);
+    assert_eq!((floor.beta, floor.gamma), (0.3, 0.5));
+    // Candidates without weight or light do not lower it.
+    let weightless = Candidate { weight: 0.0, beta: 0.001, gamma: 0.01, ..candidates[0] };
+    let dark = Candidate { k: Vec3::ZERO, beta: 0.001, gamma: 0.01, ..candidates[0] };
+    assert_eq!(WidthFloor::of(&[candidates[0], candidates[1], weightless, dark]), floor);
+    let mut target = target_of(&candidates, &pairs);
+    let mean = target.iter().map(|t| t.x).sum::<f32>() / target.len() as f32;
+    let spike = (0..pairs.len()).fold(0, |b, p| if pairs[p].0.z > 0.5 && pairs[p].1.z > 0.5 && target[p].x < target[b].x { p } else { b });
+    target[spike] += Vec3::splat(20.0 * mean);
+    for max_lobes in [1, 2, 8] {
+        let fit = fit_footprint(&Footprint { candidates: &candidates, kd_normal: Vec3::ZERO, target: &target }, &pairs, &FitSettings { max_lobes, ..settings() });
+        for (lobe, _, _) in fit.lobes.iter().filter(|(l, _, _)| l.k.max_element() > 0.0) {
+            assert!(lobe.beta >= floor.beta && (lobe.gamma <= 0.0 || lobe.gamma >= floor.gamma), "{max_lobes} lobes: {lobe:?}");
+        }
+        // Nowhere brighter than the outlier asked for, on 4000 pairs the fit never saw.
+        let fitted = |wi: Vec3, wo: Vec3| -> Vec3 { fit.kd * wi.z.max(0.0) + fit.lobes.iter().map(|(l, n, t)| { let f = cloth_frame(*n, *t); cloth_lobe(l, fit.eta, fit.a, &f, wi, wo, BrdfReading::Bounded) * f.n.dot(wi).max(0.0) }).sum::<Vec3>() };
+        let dense = fit_pairs(4000, 99);
+        let peak = dense.iter().map(|&(wi, wo)| fitted(wi, wo).x).fold(0.0f32, f32::max);
+        let bound = target.iter().map(|t| t.x).fold(0.0f32, f32::max).max(target_of(&candidates, &dense).iter().map(|t| t.x).fold(0.0, f32::max));
+        assert!(peak.is_finite() && peak <= bound, "{max_lobes} lobes: peak {peak} over the brightest target {bound}");
+    }
 }
 
 fn flat_tile(n: u32) -> Tile {

@@ -1,7 +1,8 @@
 //! Fitting one coarse texel's lobes to its footprint (paper §5.3.5): group the
 //! footprint's lobes by normal and tangent axis, start each output lobe from the
 //! moments of its group, refine the widths by Nelder–Mead against the footprint's mean
-//! response over the fixed direction pairs, the strengths k (and k_d) by NNLS per RGB
+//! response over the fixed direction pairs (no narrower than the footprint's narrowest
+//! lobe, [`WidthFloor`]), the strengths k (and k_d) by NNLS per RGB
 //! channel at every step; double the lobes (1, 2, 4, 8) until the relative error is
 //! below the tolerance, and keep the fewest within [`MIN_GAIN`] of the best.
 //!
@@ -340,13 +341,47 @@ fn solve(caches: &[GroupCache], widths: &[(f32, f32)], diffuse: &[f32], balance:
     out
 }
 
+/// The narrowest widths a coarse lobe may take: its footprint's narrowest β and γ, of
+/// the lobes that carry light (k > 0). A coarse texel's response is a mean of its
+/// footprint's lobes over their spread frames, never narrower than the narrowest of
+/// them; a width fitted to the fixed pairs alone can collapse to `BETA_MIN` and spike
+/// between them (felt's 128-cluster chain had 57 coarse lobes under half their
+/// footprint's narrowest β; one, β = 0.001 and k = 3.6, shone 500× the level's median
+/// texel toward one view and made a far pixel 50× the image's mean;
+/// baker/PREFILTER_MEASUREMENTS.md, "Coarse lobes no narrower than their footprint").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WidthFloor {
+    pub beta: f32,
+    /// For lobes whose φ falloff is on.
+    pub gamma: f32,
+}
+
+impl WidthFloor {
+    /// The floor of `candidates` (`BETA_MIN`, `GAMMA_MIN` where none carries light).
+    pub fn of(candidates: &[Candidate]) -> WidthFloor {
+        let weighted = || candidates.iter().filter(|c| c.weight > 0.0 && c.k.max_element() > 0.0);
+        let beta = weighted().map(|c| c.beta).fold(f32::INFINITY, f32::min);
+        let gamma = weighted().filter(|c| c.gamma > 0.0).map(|c| c.gamma).fold(f32::INFINITY, f32::min);
+        WidthFloor {
+            beta: if beta.is_finite() { beta.clamp(BETA_MIN, BETA_MAX) } else { BETA_MIN },
+            gamma: if gamma.is_finite() { gamma.clamp(GAMMA_MIN, GAMMA_MAX) } else { GAMMA_MIN },
+        }
+    }
+
+    /// (β, γ) raised to the floor (γ ≤ 0, the falloff off, stays off).
+    fn raise(&self, (beta, gamma): (f32, f32)) -> (f32, f32) {
+        (beta.max(self.beta), if gamma > 0.0 { gamma.max(self.gamma) } else { gamma })
+    }
+}
+
 /// The widths of fixed frames: NNLS at the moments' widths, then Nelder–Mead over
-/// ln β (and ln γ where the falloff is on) unless that already meets the tolerance.
+/// ln β (and ln γ where the falloff is on) unless that already meets the tolerance;
+/// no narrower than `floor`.
 #[allow(clippy::too_many_arguments)]
-fn fit_widths(groups: Vec<GroupMoments>, eta: f32, a: f32, pairs: &[Pair], balance: &[f32], target: &[Vec3], target2: [f64; 3], s: &FitSettings) -> (Solve, Vec<(f32, f32)>, Vec<GroupMoments>) {
+fn fit_widths(groups: Vec<GroupMoments>, floor: WidthFloor, eta: f32, a: f32, pairs: &[Pair], balance: &[f32], target: &[Vec3], target2: [f64; 3], s: &FitSettings) -> (Solve, Vec<(f32, f32)>, Vec<GroupMoments>) {
     let caches: Vec<GroupCache> = groups.iter().map(|m| cache(m, eta, a, pairs)).collect();
     let diffuse: Vec<f32> = pairs.iter().map(|&(wi, wo)| cloth_diffuse_cosine(s.diffuse, groups[0].n, wi, wo)).collect();
-    let start: Vec<(f32, f32)> = groups.iter().map(|m| (m.beta, m.gamma)).collect();
+    let start: Vec<(f32, f32)> = groups.iter().map(|m| floor.raise((m.beta, m.gamma))).collect();
     let mut widths = start.clone();
     let mut sol = solve(&caches, &widths, &diffuse, balance, target, s.reading, target2);
     if sol.error2.sqrt() as f32 > s.tolerance && s.evals_per_dim > 0 {
@@ -359,7 +394,7 @@ fn fit_widths(groups: Vec<GroupMoments>, eta: f32, a: f32, pairs: &[Pair], balan
         }
         let unpack = |x: &[f64]| -> Vec<(f32, f32)> {
             let mut it = x.iter();
-            start.iter().map(|&(_, gm)| unpack_width(&mut it, gm)).collect()
+            start.iter().map(|&(_, gm)| unpack_width(&mut it, gm, floor)).collect()
         };
         let opts = NelderMead { max_evals: s.evals_per_dim * x0.len(), f_tol: 1e-5, x_tol: 1e-3 };
         let f = |x: &[f64]| solve(&caches, &unpack(x), &diffuse, balance, target, s.reading, target2).error2;
@@ -375,10 +410,10 @@ fn fit_widths(groups: Vec<GroupMoments>, eta: f32, a: f32, pairs: &[Pair], balan
     (sol, widths, groups)
 }
 
-/// One lobe's (β, γ) from its packed ln β [, ln γ].
-fn unpack_width<'a>(it: &mut impl Iterator<Item = &'a f64>, gamma_on: f32) -> (f32, f32) {
-    let b = (it.next().copied().unwrap_or(0.0).exp() as f32).clamp(BETA_MIN, 2.0);
-    let g = if gamma_on > 0.0 { (it.next().copied().unwrap_or(0.0).exp() as f32).clamp(GAMMA_MIN, 10.0) } else { 0.0 };
+/// One lobe's (β, γ) from its packed ln β [, ln γ], from `floor` up to 2 (γ: 10).
+fn unpack_width<'a>(it: &mut impl Iterator<Item = &'a f64>, gamma_on: f32, floor: WidthFloor) -> (f32, f32) {
+    let b = (it.next().copied().unwrap_or(0.0).exp() as f32).clamp(floor.beta, floor.beta.max(2.0));
+    let g = if gamma_on > 0.0 { (it.next().copied().unwrap_or(0.0).exp() as f32).clamp(floor.gamma, floor.gamma.max(10.0)) } else { 0.0 };
     (b, g)
 }
 
@@ -397,7 +432,7 @@ fn turned(m: &GroupMoments, twist: f32, tilt_t: f32, tilt_b: f32) -> GroupMoment
 /// term's) the tilt (δ_t, δ_b), bounded to |δ| ≤ 1 (45°). The per-pair caches depend on
 /// the frame, so each evaluation rebuilds them: about 3× the cost of the widths alone.
 #[allow(clippy::too_many_arguments)]
-fn fit_frames(groups: &[GroupMoments], widths: &[(f32, f32)], eta: f32, a: f32, pairs: &[Pair], balance: &[f32], target: &[Vec3], target2: [f64; 3], s: &FitSettings) -> Option<(Solve, Vec<(f32, f32)>, Vec<GroupMoments>)> {
+fn fit_frames(groups: &[GroupMoments], widths: &[(f32, f32)], floor: WidthFloor, eta: f32, a: f32, pairs: &[Pair], balance: &[f32], target: &[Vec3], target2: [f64; 3], s: &FitSettings) -> Option<(Solve, Vec<(f32, f32)>, Vec<GroupMoments>)> {
     let diffuse: Vec<f32> = pairs.iter().map(|&(wi, wo)| cloth_diffuse_cosine(s.diffuse, groups[0].n, wi, wo)).collect();
     let mut x0 = Vec::new();
     for (k, &(b, gm)) in widths.iter().enumerate() {
@@ -415,7 +450,7 @@ fn fit_frames(groups: &[GroupMoments], widths: &[(f32, f32)], eta: f32, a: f32, 
         let mut w = Vec::with_capacity(groups.len());
         let mut g = Vec::with_capacity(groups.len());
         for (k, m) in groups.iter().enumerate() {
-            w.push(unpack_width(&mut it, widths[k].1));
+            w.push(unpack_width(&mut it, widths[k].1, floor));
             let twist = it.next().copied().unwrap_or(0.0) as f32;
             let (dt, db) = if k > 0 { (it.next().copied().unwrap_or(0.0) as f32, it.next().copied().unwrap_or(0.0) as f32) } else { (0.0, 0.0) };
             g.push(turned(m, twist, dt.clamp(-1.0, 1.0), db.clamp(-1.0, 1.0)));
@@ -509,6 +544,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
     counts.dedup();
     let mut tried = 0;
     let all: Vec<&Candidate> = fp.candidates.iter().collect();
+    let floor = WidthFloor::of(fp.candidates);
     // Lobe 0 carries the diffuse term, whose normal is the footprint's k_d-weighted
     // mean normal (Σ k_d,τ max(n_τ·ω_i, 0) ≈ (Σ k_d,τ n_τ)·ω_i): its own lobe in that
     // frame, with the moments of the whole footprint. A group's normal is not the
@@ -531,7 +567,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
         tried = g;
         let mut groups = vec![diffuse_group];
         groups.extend((0..count).map(|k| group_moments(fp.candidates, &assign, k, kd_n)));
-        let (mut sol, mut widths, mut groups) = fit_widths(groups, eta, a, pairs, &balance, target, target2, s);
+        let (mut sol, mut widths, mut groups) = fit_widths(groups, floor, eta, a, pairs, &balance, target, target2, s);
         if !past_budget && s.free_frames && max_lobes <= FREE_FRAME_LOBES && sol.error2.sqrt() as f32 > s.tolerance && s.evals_per_dim > 0 {
             // Each lobe's frame free as well: a twist of its tangent about its normal,
             // and (lobes past the diffuse one) a tilt of the normal. Moments put the
@@ -540,7 +576,7 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
             // footprint split into g groups with the diffuse lobe taking the first
             // group's tangent (warp and weft: one lobe each).
             let mut tries = Vec::new();
-            if let Some(f) = fit_frames(&groups, &widths, eta, a, pairs, &balance, target, target2, s) {
+            if let Some(f) = fit_frames(&groups, &widths, floor, eta, a, pairs, &balance, target, target2, s) {
                 tries.push(f);
             }
             let (assign, count) = group_candidates(fp.candidates, g);
@@ -551,8 +587,8 @@ pub fn fit_footprint(fp: &Footprint, pairs: &[Pair], s: &FitSettings) -> CoarseF
                         if k == 0 { in_diffuse_frame(m, kd_n) } else { m }
                     })
                     .collect();
-                let (ss, sw, sg) = fit_widths(split, eta, a, pairs, &balance, target, target2, s);
-                if let Some(f) = fit_frames(&sg, &sw, eta, a, pairs, &balance, target, target2, s) {
+                let (ss, sw, sg) = fit_widths(split, floor, eta, a, pairs, &balance, target, target2, s);
+                if let Some(f) = fit_frames(&sg, &sw, floor, eta, a, pairs, &balance, target, target2, s) {
                     tries.push(f);
                 }
                 tries.push((ss, sw, sg));
