@@ -4,7 +4,7 @@
 
 use fabric_runtime::brdf::{BrdfReading, ClothLobe, ClothParams, cloth_brdf};
 use fabric_runtime::cpu::shading::{in_fiber_frame, texel_response};
-use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FINE_TRACE_FROM, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, LEVEL0_GRID_MAX, LEVEL0_REACH, MAX_ANISOTROPY, MAX_SURFACE_TAPS, box_grid, fine_grid_spread, fine_grid_traced, fly_box_grid, grid_taps, level0_grid_taps, level0_reach_weight};
+use fabric_runtime::cpu::render::{FILTER_GRID, FILTER_OFFSET, FINE_GRID_FROM, FINE_GRID_FULL, FINE_TRACE_FROM, FLY_FINE_GRID, FLY_MAX_ANISOTROPY, LEVEL0_GRID_MAX, LEVEL0_REACH, LEVEL0_TAPS_MAX, MAX_ANISOTROPY, MAX_SURFACE_TAPS, SURFACE_GRID, box_grid, fine_grid_spread, fine_grid_traced, fly_box_grid, grid_taps, level0_grid_taps, level0_reach_weight};
 use fabric_runtime::cpu::{CoarseFilter, CpuRenderError, CpuRenderOptions, LevelChoice, Scene, ShadowMode, render, render_with_stats};
 use fabric_runtime::hybrid::{BrdfTable, FlyawayInput, Surface, Tile, examples, level_dims};
 use fabric_runtime::scene::{Camera, Light, Projection};
@@ -114,9 +114,10 @@ fn level_follows_the_pixel_footprint() {
         let (image, _) = render_with_stats(&m, &cam, &light, &CpuRenderOptions { level: LevelChoice::Auto { bias }, ..Default::default() }).unwrap();
         let rho = 64.0 / pixels as f32;
         let lambda = rho.log2() + FILTER_OFFSET + bias;
-        let lambda = match box_grid(rho, rho, 1, lambda, bias, FILTER_GRID) {
+        let lambda = match box_grid(rho, rho, 1, lambda, bias, SURFACE_GRID) {
             None => 0.0,
             Some(g) => {
+                // The reach is a footprint's size, in FILTER_GRID lookups whatever the surface's grid.
                 let reach = level0_reach_weight((rho / FILTER_GRID as f32).log2() + FILTER_OFFSET + bias);
                 if reach < 1.0 { reach } else { g.lambda }
             }
@@ -141,7 +142,7 @@ fn level_follows_the_pixel_footprint() {
 /// grid, and grows out of the one-lookup rule continuously.
 #[test]
 fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
-    assert!(FILTER_GRID >= 2, "the grid is on");
+    assert!(FILTER_GRID >= 2 && SURFACE_GRID >= 2, "the grids are on");
     let variance = |span: f32, taps: u32, level: f32| {
         let s = span / taps as f32;
         s * s * (taps * taps - 1) as f32 / 12.0 + (2.0 * level).exp2() / 4.0
@@ -230,28 +231,29 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
             assert_eq!((m.lo, m.weight, m.fine_taps), (0, 0.0, (1, 1)), "{texels} texels");
             continue;
         }
-        let across = (texels.ceil() as u32).clamp(FILTER_GRID, LEVEL0_GRID_MAX);
+        let across = (texels.ceil() as u32).clamp(SURFACE_GRID, LEVEL0_GRID_MAX);
         assert_eq!((m.lo, m.hi, m.weight, m.fine_taps), (0, 0, 0.0, (across, across)), "{texels} texels: level 0 alone");
         let spread = (2.0 * lambda).clamp(0.0, 1.0).max(fine_grid_spread(texels));
         assert!((m.fine_axes.0.length() - spread * texels * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - spread * texels * t).abs() < 1e-4 * t, "{texels} texels: {m:?}");
     }
     // A long footprint (1.5 × 3.4 texels, λ < 0): along its major axis the grid spans
-    // the minor axis's width in texels, not the whole footprint, with N·G lookups.
+    // the minor axis's width in texels, not the whole footprint, with N·G lookups (N = 3,
+    // G = 3: at most LEVEL0_TAPS_MAX, 5 × 3).
     let m = scene.level_mix_axes(Some((Vec2::new(3.4 * t, 0.0), Vec2::new(0.0, 1.5 * t))));
-    assert_eq!((m.lo, m.hi, m.fine_taps), (0, 0, (grid_taps(3, FILTER_GRID), FILTER_GRID)), "{m:?}");
+    assert_eq!((m.lo, m.hi, m.fine_taps), (0, 0, (5, SURFACE_GRID)), "{m:?}");
     assert!((m.fine_axes.0.length() - 1.5 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 1.5 * t).abs() < 1e-4 * t, "{m:?}");
     // Continuous across λ = 0 (1.73 texels) and at a quarter texel.
     let spread_of = |texels: f32| mix_at(texels).fine_axes.0.length() / (texels * t);
     let l0 = 2f32.powf(-FILTER_OFFSET);
     assert!((spread_of(l0 * 0.999) - spread_of(l0 * 1.001)).abs() < 0.01, "{} / {}", spread_of(l0 * 0.999), spread_of(l0 * 1.001));
     assert!(spread_of(FINE_GRID_FROM * 1.001) < 0.01);
-    // Level 0's grid: about one lookup per texel across, two to four, N times as many
-    // along a long footprint, at most 16 (the GPU's arrays).
-    assert_eq!((LEVEL0_REACH, LEVEL0_GRID_MAX, MAX_SURFACE_TAPS), (4.0, 4, 16));
-    for (minor, n, want) in [(0.3f32, 1u32, (2u32, 2u32)), (1.5, 1, (2, 2)), (2.0, 3, (6, 2)), (2.5, 1, (3, 3)), (3.0, 2, (5, 3)), (3.4, 1, (4, 4)), (4.0, 3, (4, 4)), (10.0, 1, (4, 4)), (2.0, 8, (8, 2)), (0.0, 1, (2, 2)), (f32::NAN, 1, (2, 2))] {
-        let got = level0_grid_taps(minor, n, FILTER_GRID);
-        assert_eq!(got, want, "{minor} texels, N {n}");
-        assert!(got.0 * got.1 <= MAX_SURFACE_TAPS);
+    // Level 0's grid: about one lookup per texel across, G to four, N times as many
+    // along a long footprint, at most 16; a coarse grid at most 8 × 3 (the GPU's arrays).
+    assert_eq!((LEVEL0_REACH, LEVEL0_GRID_MAX, LEVEL0_TAPS_MAX, SURFACE_GRID, MAX_SURFACE_TAPS), (4.0, 4, 16, 3, MAX_ANISOTROPY * SURFACE_GRID));
+    for (grid, minor, n, want) in [(2, 0.3f32, 1u32, (2u32, 2u32)), (2, 1.5, 1, (2, 2)), (2, 2.0, 3, (6, 2)), (2, 2.5, 1, (3, 3)), (2, 3.0, 2, (5, 3)), (2, 3.4, 1, (4, 4)), (2, 4.0, 3, (4, 4)), (2, 10.0, 1, (4, 4)), (2, 2.0, 8, (8, 2)), (2, 0.0, 1, (2, 2)), (2, f32::NAN, 1, (2, 2)), (3, 0.3, 1, (3, 3)), (3, 1.5, 2, (5, 3)), (3, 3.4, 1, (4, 4)), (3, 0.0, 1, (3, 3))] {
+        let got = level0_grid_taps(minor, n, grid);
+        assert_eq!(got, want, "{minor} texels, N {n}, G {grid}");
+        assert!(got.0 * got.1 <= LEVEL0_TAPS_MAX);
     }
     // Up to two texels across it is the box grid's: G × N·G.
     for n in 1..=8 {
@@ -277,7 +279,7 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
         last = m.weight;
         if texels < full * 0.999 {
             // Level 1 through the box grid at level 1.
-            let g = box_grid(texels, texels, 1, lambda_of(texels), 0.0, FILTER_GRID).unwrap();
+            let g = box_grid(texels, texels, 1, lambda_of(texels), 0.0, SURFACE_GRID).unwrap();
             assert_eq!((m.lo, m.hi, m.taps, m.taps_minor), (0, 1, g.taps_major, g.taps_minor), "{texels} texels");
             assert!((m.axis.length() - g.span_major * t).abs() < 1e-4 * t, "{texels} texels");
         }
@@ -291,7 +293,7 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     let lone = Scene::for_rays(&bare, &[], CpuRenderOptions { periodic: true, ..Default::default() }).unwrap();
     for texels in [3.0f32, 5.0, 10.0, 40.0] {
         let m = lone.level_mix_axes(Some((Vec2::new(texels * t, 0.0), Vec2::new(0.0, texels * t))));
-        assert!((m.lo, m.hi, m.weight, m.fine_taps) == (0, 0, 0.0, level0_grid_taps(texels, 1, FILTER_GRID)) && (m.fine_axes.0.length() - texels * t).abs() < 1e-4 * texels * t, "{texels} texels: {m:?}");
+        assert!((m.lo, m.hi, m.weight, m.fine_taps) == (0, 0, 0.0, level0_grid_taps(texels, 1, SURFACE_GRID)) && (m.fine_axes.0.length() - texels * t).abs() < 1e-4 * texels * t, "{texels} texels: {m:?}");
     }
     // The bilinear filter (no grid) blends levels 0 and 1 by λ, as Vulkan's linear mips.
     let bilinear = Scene::for_rays(&model, &[], CpuRenderOptions { periodic: true, coarse_filter: CoarseFilter::Bilinear, ..Default::default() }).unwrap();

@@ -81,8 +81,11 @@ float fine_grid_spread(float minor) {
 // Level 0 is read through its own grid up to footprints of LEVEL0_REACH texels, level 1
 // only beyond (at 2-4 texels per pixel level 0's texels are the pixel's box, level 1 a
 // fit blurred over twice its width). Twin: LEVEL0_REACH, LEVEL0_GRID_MAX; the taps in
-// all are at most shading.glsl's MAX_SURFACE_TAPS (16).
+// all are at most LEVEL0_TAPS_MAX. The reach is a footprint's size in REACH_GRID
+// lookups per axis, whatever the surface's grid FILTER_GRID. Twin: FILTER_GRID in
+// runtime/src/cpu/level.rs.
 const float LEVEL0_REACH = 4.0;
+const uint REACH_GRID = 2u;
 #define LEVEL0_GRID_MAX 4u
 #define LEVEL0_TAPS_MAX 16u
 
@@ -96,11 +99,11 @@ uvec2 level0_grid_taps(float minor, uint n) {
     return uvec2(along, across);
 }
 
-// Level 1's weight over level 0's grid for a box grid whose lookups' level before
-// clamping is lambda_b: 0 while they span at most LEVEL0_REACH / FILTER_GRID texels, 1
+// Level 1's weight over level 0's grid for a REACH_GRID grid whose lookups' level before
+// clamping is lambda_b: 0 while they span at most LEVEL0_REACH / REACH_GRID texels, 1
 // where the box grid's level reaches 1, linear between. Twin: level0_reach_weight.
 float level0_reach_weight(float lambda_b) {
-    float reach_from = log2(LEVEL0_REACH / float(FILTER_GRID)) + FILTER_OFFSET;
+    float reach_from = log2(LEVEL0_REACH / float(REACH_GRID)) + FILTER_OFFSET;
     float w = (lambda_b - reach_from) / (1.0 - reach_from);
     return isnan(w) ? 1.0 : clamp(w, 0.0, 1.0);
 }
@@ -346,10 +349,10 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     m.taps = g.taps_major;
     m.minor_axis = minor_axis * (g.span_minor / max(minor, 1e-6));
     m.taps_minor = g.taps_minor;
-    // Level 0's grid blended with level 1's box grid up to where the box grid's level
+    // Level 0's grid blended with level 1's box grid up to where a REACH_GRID grid's level
     // reaches 1 (level0_reach_weight).
     // A model without a chain reads level 0 through its grid at every distance.
-    float reach = level0_reach_weight(log2(major / float(grid_taps(taps, FILTER_GRID))) + FILTER_OFFSET + bias);
+    float reach = level0_reach_weight(log2(major / float(grid_taps(taps, REACH_GRID))) + FILTER_OFFSET + bias);
     if (reach < 1.0 || last == 0u) {
         m.lo = 0u;
         m.hi = last == 0u ? 0u : 1u;

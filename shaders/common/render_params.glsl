@@ -79,7 +79,7 @@ layout(constant_id = 5) const bool HAS_ENV = false;
 layout(constant_id = 6) const bool TRANSMISSION = false;
 // Lookups per axis of the coarse levels' box grid (level.glsl, box_grid; 1: one bilinear
 // lookup per anisotropic tap). Twin: CoarseFilter::grid.
-layout(constant_id = 7) const uint FILTER_GRID = 2u;
+layout(constant_id = 7) const uint FILTER_GRID = 3u;
 // Rays per axis of the flyaways' box grid (level.glsl, fly_box_grid; 1: one ray). Twin:
 // CoarseFilter::fly_grid.
 layout(constant_id = 8) const uint FLY_GRID = 2u;

@@ -83,8 +83,18 @@ pub const MAX_ANISOTROPY: u32 = 8;
 /// baker/PREFILTER_MEASUREMENTS.md.
 pub const FILTER_OFFSET: f32 = -0.792_481_25;
 
-/// Lookups per axis of the box filter at coarse levels (`box_grid`, `CoarseFilter::Box`).
+/// Lookups per axis of the flyaways' box grid (`fly_box_grid`, `CoarseFilter::fly_grid`),
+/// and of the grid that measures level 0's reach ([`level0_reach_weight`]): footprints
+/// are measured in its lookups, whatever grid the surface has.
 pub const FILTER_GRID: u32 = 2;
+
+/// Lookups per axis of the surface's box grid at coarse levels (`box_grid`,
+/// `CoarseFilter::grid`): 3 since 2026-12-07 (2 before). Coarse texels are fits of their
+/// footprints, less faithful the coarser (satin's 128-cluster chain: fit error 9–11% per
+/// texel with two lobes); a 3 × 3 grid reads a level finer than a 2 × 2 one at the
+/// same footprint. Satin's and twill's distance sweeps at the bake's default K went from
+/// 4.4–5.4% and 3.5–5.2% to 4.3–5.0% and 3.3–4.7% (baker/PREFILTER_MEASUREMENTS.md, "A 3 × 3 surface grid").
+pub const SURFACE_GRID: u32 = 3;
 
 /// The box filter's grid of lookups: `taps_major` × `taps_minor` bilinear lookups at
 /// level `lambda`, spread over spans (level-0 texels) of the footprint's two axes.
@@ -253,8 +263,8 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
 }
 
 /// Level 0 is read through its own grid of nearest texels up to footprints this many
-/// level-0 texels across (measured by the box grid's lookups: `FILTER_GRID` of them per
-/// round footprint, each spanning up to `LEVEL0_REACH / FILTER_GRID` texels), and level 1
+/// level-0 texels across (measured by [`FILTER_GRID`] lookups per round footprint,
+/// whatever the surface's grid, each spanning up to `LEVEL0_REACH / FILTER_GRID` texels), and level 1
 /// only beyond. At 2–4 texels per pixel the prefiltered level 1 is the coarse fit of a
 /// 2×2 footprint, bilinearly blurred over twice the pixel's width, while a 4×4 grid of
 /// level 0's own texels is the pixel's box: 32 px far views (4 texels per pixel, chain at
@@ -264,20 +274,24 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
 /// (baker/PREFILTER_MEASUREMENTS.md, "Level 0 up to four texels per pixel").
 pub const LEVEL0_REACH: f32 = 4.0;
 
-/// Most lookups per axis of level 0's grid, and in all (shaders/common/shading.glsl's
-/// `MAX_SURFACE_TAPS`).
+/// Most lookups per axis of level 0's grid, and in all (shaders/common/level.glsl's
+/// `LEVEL0_GRID_MAX`, `LEVEL0_TAPS_MAX`).
 pub const LEVEL0_GRID_MAX: u32 = 4;
-pub const MAX_SURFACE_TAPS: u32 = 16;
+pub const LEVEL0_TAPS_MAX: u32 = 16;
+/// Most lookups of a surface grid, coarse or level 0's: [`MAX_ANISOTROPY`] ·
+/// [`SURFACE_GRID`] (shaders/common/shading.glsl's `MAX_SURFACE_TAPS`).
+pub const MAX_SURFACE_TAPS: u32 = MAX_ANISOTROPY * SURFACE_GRID;
 
 /// The lookups of level 0's grid over a footprint whose minor axis spans `minor`
 /// level-0 texels, with `n` anisotropic lookups and `grid` lookups per axis of the box
 /// filter: about one per texel across (⌈minor⌉, from `grid` to [`LEVEL0_GRID_MAX`]) and
-/// n times as many along the major axis, at most [`MAX_SURFACE_TAPS`] in all. Up to two
-/// texels across this is the box grid's (`grid_taps(n, grid)` × `grid`). Twin:
+/// n times as many along the major axis, at most [`LEVEL0_TAPS_MAX`] in all. Up to
+/// `grid` texels across this is the box grid's (`grid_taps(n, grid)` × `grid`) where
+/// that is within [`LEVEL0_TAPS_MAX`]. Twin:
 /// `level0_grid_taps` in shaders/common/level.glsl.
 pub fn level0_grid_taps(minor: f32, n: u32, grid: u32) -> (u32, u32) {
     let across = if minor > 0.0 { (minor.ceil().min(LEVEL0_GRID_MAX as f32) as u32).max(grid) } else { grid };
-    let along = (n.max(1) * across).min((MAX_SURFACE_TAPS / across).max(across));
+    let along = (n.max(1) * across).min((LEVEL0_TAPS_MAX / across).max(across));
     (along, across)
 }
 

@@ -66,7 +66,7 @@ pub enum ShadowMode {
 /// How coarse levels (≥ 1) are filtered (level.rs, `box_grid`; runtime/HYBRID_FORMAT.md §6).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CoarseFilter {
-    /// A grid of `level::FILTER_GRID` lookups per axis one level finer, spread to keep
+    /// A grid of `level::SURFACE_GRID` lookups per axis a level or two finer, spread to keep
     /// the pixel's variance (`level::box_grid`), and the flyaways marched along as many
     /// parallel rays over the footprint, each to its own surface (min(N, 2)·G along a
     /// grazing footprint's major axis, at the lookups' level; `level::fly_box_grid`): closer
@@ -115,7 +115,7 @@ impl CoarseFilter {
     /// Lookups per axis of the surface's grid (1: none).
     pub fn grid(self) -> u32 {
         match self {
-            CoarseFilter::Box | CoarseFilter::Fine | CoarseFilter::Split | CoarseFilter::SplitShaded => level::FILTER_GRID,
+            CoarseFilter::Box | CoarseFilter::Fine | CoarseFilter::Split | CoarseFilter::SplitShaded => level::SURFACE_GRID,
             CoarseFilter::Bilinear => 1,
         }
     }
