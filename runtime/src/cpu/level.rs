@@ -91,8 +91,8 @@ pub const FILTER_GRID: u32 = 2;
 /// Lookups per axis of the surface's box grid at coarse levels (`box_grid`,
 /// `CoarseFilter::grid`): 3 since 2026-12-07 (2 before). Coarse texels are fits of their
 /// footprints, less faithful the coarser (satin's 128-cluster chain: fit error 9–11% per
-/// texel with two lobes); a 3 × 3 grid reads a level finer than a 2 × 2 one at the
-/// same footprint. Satin's and twill's distance sweeps at the bake's default K went from
+/// texel with two lobes); a 3 × 3 grid reads up to log2(3/2) ≈ 0.58 level finer than a
+/// 2 × 2 one at the same footprint. Satin's and twill's distance sweeps at the bake's default K went from
 /// 4.4–5.4% and 3.5–5.2% to 3.9–5.0% and 3.1–4.7% (baker/PREFILTER_MEASUREMENTS.md,
 /// "What kept satin and twill at the default K above 5%, and a 3 × 3 surface grid").
 pub const SURFACE_GRID: u32 = 3;
