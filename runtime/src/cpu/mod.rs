@@ -67,9 +67,10 @@ pub enum ShadowMode {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CoarseFilter {
     /// A grid of `level::SURFACE_GRID` lookups per axis a level or two finer, spread to keep
-    /// the pixel's variance (`level::box_grid`), and the flyaways marched along as many
-    /// parallel rays over the footprint, each to its own surface (min(N, 2)·G along a
-    /// grazing footprint's major axis, at the lookups' level; `level::fly_box_grid`): closer
+    /// the pixel's variance (`level::box_grid`), and the flyaways marched along a grid of
+    /// `level::FILTER_GRID` parallel rays per axis over the footprint, each to its own
+    /// surface (min(N, 2)·FILTER_GRID along a grazing footprint's major axis, at their own
+    /// level; `level::fly_box_grid`): closer
     /// to the pixel's box (baker/PREFILTER_MEASUREMENTS.md, "The box filter"), at a
     /// multiple of the far views' frame time (runtime/GPU_MEASUREMENTS.md).
     Box,
