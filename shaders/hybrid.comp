@@ -31,6 +31,7 @@ layout(std430, set = 0, binding = 10) buffer StatsBlock { uint stats[]; };
 #define STAT_NON_FINITE 5
 #define STAT_STEPS_LO 6
 #define STAT_LEVELS 8
+#define STAT_LOOPS_CUT (STAT_LEVELS + GPU_MAX_LEVELS)
 
 // The pixel being traced (its centre): its footprint chooses the levels.
 vec2 g_pixel;
@@ -82,6 +83,19 @@ void main() {
         g_lights[k] = params.lights[k];
     }
     PixelTrace t = trace_pixel(x, y);
+    // lavapipe (llvmpipe) counts every loop iteration of an invocation against one
+    // budget of 65535 (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS) and, once it is spent,
+    // ends each loop after its current iteration: loops cut short draw a wrong pixel,
+    // silently (a pixel group of 8 left black). A loop of two iterations whose count the
+    // compiler cannot know runs one there; elsewhere it always runs two. Such pixels
+    // are counted and the frame is an error (GpuRenderError::LoopBudget).
+    uint probe = 0u;
+    for (uint i = 0u; i < (params.max_steps == 0xffffffffu ? 3u : 2u); ++i) {
+        ++probe;
+    }
+    if (probe < 2u) {
+        atomicAdd(stats[STAT_LOOPS_CUT], 1u);
+    }
     bool finite = !any(isnan(t.radiance)) && !any(isinf(t.radiance));
     pixels[y * size.x + x] = vec4(finite ? t.radiance : vec3(0.0), finite ? 1.0 : 0.0);
     if (t.level >= 0) {

@@ -856,3 +856,38 @@ fn the_environment_is_seen_behind_meshes() {
     assert!((plain.image.get(0, 0) - background).abs().max_element() < 1e-3);
     assert_no_validation_errors(&device);
 }
+
+/// lavapipe ends every loop of a shader invocation once 65535 iterations have run in all
+/// (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), silently: the baked felt's far view under the
+/// sky spends up to 65096 of them per 8-pixel group at one sample per pixel (measured),
+/// so at 2 × 2 samples it runs out. The frame is then an error, not groups of black
+/// pixels; on a driver without the limit it is drawn and agrees with the CPU twin.
+#[test]
+fn a_frame_past_the_drivers_loop_budget_is_an_error_not_black_pixels() {
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
+    let fb = felt.bounds();
+    let camera = Camera::orbit_orthographic(45.0, 30.0, Vec3::new(fb.center().x, fb.center().y, fb.max.z), 4.0, 8.0 * 32.0 / felt.width() as f32 * fb.size().x, 32, 32);
+    let options = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, coarse_filter: CoarseFilter::SplitShaded, env: Some(sky_light()), supersampling: 2, ..Default::default() };
+    let lavapipe = device.info().name.contains("llvmpipe");
+    let gpu_model = pass.upload(&felt, true).unwrap();
+    match pass.render(&gpu_model, &camera, &[], &options, None) {
+        Err(GpuRenderError::LoopBudget { count, device: name }) => {
+            assert!(lavapipe, "{name} reported a loop budget");
+            assert!(count > 0 && count <= 32 * 32, "{count} pixels");
+            println!("{name}: {count} of 1024 pixels past the loop budget");
+        }
+        Ok(frame) => {
+            assert!(!lavapipe, "lavapipe drew a frame past its loop budget");
+            let cpu = render(&felt, &camera, &[], &options).unwrap();
+            let rmse = relative_rmse(&frame.image, &cpu).unwrap();
+            assert!(rmse < 1e-2, "relative RMSE {rmse}");
+        }
+        Err(e) => panic!("{e}"),
+    }
+    // One sample per pixel stays within it (gpu_matches_the_cpu_twin draws that view).
+    let one = CpuRenderOptions { supersampling: 1, ..options };
+    assert!(pass.render(&gpu_model, &camera, &[], &one, None).is_ok());
+    assert_no_validation_errors(&device);
+}

@@ -52,13 +52,17 @@ void env_theta_cells(float theta_c, float beta_eff, uint k_theta, ClothAngles ao
     float inv = 1.0 / (beta_eff * 1.41421356237310);
     float e0 = env_erf((lo - theta_c) * inv);
     float g0 = cloth_gaussian(lo - theta_c, beta_eff);
-    for (uint i = 0u; i < k_theta; ++i) {
+    // To the constant 4 (k_theta's most), the cells past k_theta skipped: a loop of a
+    // known count is unrolled, and unrolled it does not count against lavapipe's budget
+    // of 65535 loop iterations per invocation (runtime/GPU_MEASUREMENTS.md, "lavapipe's
+    // loop budget"). The arithmetic is the same, in the same order.
+    for (uint i = 0u; i < 4u; ++i) {
         float t0 = lo + float(i) * d_theta;
         float t1 = lo + float(i + 1u) * d_theta;
         float e1 = env_erf((t1 - theta_c) * inv);
         float g1 = cloth_gaussian(t1 - theta_c, beta_eff);
         float mass = 0.5 * (e1 - e0);
-        if (mass > 1e-7) {
+        if (i < k_theta && mass > 1e-7) {
             float theta = clamp(theta_c + beta_eff * beta_eff * (g0 - g1) / mass, t0, t1);
             float st = sin(theta);
             float ct = cos(theta);
@@ -161,27 +165,21 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
         if (!bounded) {
             env_theta_cells(theta_c, max(beta * pf, CLOTH_BETA_MIN), k_theta, ao, eta, cells);
         }
-        for (uint i = 0u; i < k_theta; ++i) {
+        // To the constant 4, as env_theta_cells (cells past k_theta have no mass).
+        for (uint i = 0u; i < 4u; ++i) {
             ThetaCell cell = cells[i];
-            if (!(cell.mass > 0.0)) {
-                continue;
-            }
             vec3 wi = f.t * cell.s + (f.n * cp + f.b * sp) * cell.c;
             float cos_n = cell.c * cs;
-            if (!(cos_n > 0.0) || !(wi.z > 0.0)) {
-                continue;
-            }
             // Through the cloth: R = k_t P A(tau; w'.z, wo.z) w'.z, read at w' mirrored.
             vec3 r = through ? r_phi * (cloth_transmission_attenuation(tau, wi.z, wo.z) * wi.z) : r_phi * (cell.fresnel * cos_n * (volumetric ? volume_factor(wi, wo) : 1.0));
             vec3 weight = r * (cell.mass * d_phi * cell.c);
-            if (max(max(weight.x, weight.y), weight.z) <= 0.0) {
-                continue;
-            }
-            float sigma = max(cell.sigma, 0.4 * d_phi * cell.c);
-            env_group_add(group, through ? cloth_mirror_z(wi) : wi, weight, sigma);
-            emitted += 1u;
-            if (emitted % per_group == 0u) {
-                sum += env_group_flush(group);
+            if (i < k_theta && cell.mass > 0.0 && cos_n > 0.0 && wi.z > 0.0 && max(max(weight.x, weight.y), weight.z) > 0.0) {
+                float sigma = max(cell.sigma, 0.4 * d_phi * cell.c);
+                env_group_add(group, through ? cloth_mirror_z(wi) : wi, weight, sigma);
+                emitted += 1u;
+                if (emitted % per_group == 0u) {
+                    sum += env_group_flush(group);
+                }
             }
         }
     }

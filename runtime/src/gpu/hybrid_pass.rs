@@ -41,6 +41,10 @@ pub enum GpuRenderError {
     EnvUnsupported,
     #[error("{count} pixel(s) came out NaN or infinite, the first at ({x}, {y}): a bug in the renderer, please report it")]
     NonFinite { count: u32, x: u32, y: u32 },
+    /// The driver ended the shader's loops early (lavapipe: 65535 loop iterations per
+    /// invocation in all), so those pixels are wrong.
+    #[error("{count} pixel(s) needed more loop iterations than the Vulkan driver ({device}) runs per shader invocation (lavapipe stops at 65535 in all), so they would be drawn wrong: use a hardware GPU, `--backend cpu`, fewer samples per pixel, or a less grazing view (with less flyaway cloth under an environment map)")]
+    LoopBudget { count: u32, device: String },
 }
 
 /// What the shader is specialized for (constant ids 0–3 of
@@ -176,8 +180,10 @@ struct MeshPush {
     pad: [f32; 2],
 }
 
-/// Statistics words written by the shader (STAT_* of hybrid.comp).
-const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
+/// Statistics words written by the shader (STAT_* of hybrid.comp): 8 counters, the
+/// pixels per level, and the pixels whose loops the driver cut (`STAT_LOOPS_CUT`).
+const STAT_WORDS: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS + 1;
+const STAT_LOOPS_CUT: usize = 8 + crate::hybrid::gpu_layout::GPU_MAX_LEVELS;
 
 impl HybridPass {
     pub fn new(device: &Arc<Device>) -> Result<HybridPass, GpuRenderError> {
@@ -516,6 +522,9 @@ impl HybridPass {
         if non_finite > 0 {
             let k = raw.iter().position(|p| p[3] == 0.0).unwrap_or(0) as u32;
             return Err(GpuRenderError::NonFinite { count: non_finite, x: k % w, y: k / w });
+        }
+        if words[STAT_LOOPS_CUT] > 0 {
+            return Err(GpuRenderError::LoopBudget { count: words[STAT_LOOPS_CUT], device: self.device.info().name.clone() });
         }
         let image = Image { width: w, height: h, pixels: raw.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect() };
         let levels = model.levels;
