@@ -238,9 +238,9 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     }
     // A long footprint (1.5 × 3.4 texels, λ < 0): along its major axis the grid spans
     // the minor axis's width in texels, not the whole footprint, with N·G lookups (N = 3,
-    // G = 3: at most LEVEL0_TAPS_MAX, 5 × 3).
+    // G = 3: 9 × 3, within LEVEL0_TAPS_MAX).
     let m = scene.level_mix_axes(Some((Vec2::new(3.4 * t, 0.0), Vec2::new(0.0, 1.5 * t))));
-    assert_eq!((m.lo, m.hi, m.fine_taps), (0, 0, (5, SURFACE_GRID)), "{m:?}");
+    assert_eq!((m.lo, m.hi, m.fine_taps), (0, 0, (9, SURFACE_GRID)), "{m:?}");
     assert!((m.fine_axes.0.length() - 1.5 * t).abs() < 1e-4 * t && (m.fine_axes.1.length() - 1.5 * t).abs() < 1e-4 * t, "{m:?}");
     // Continuous across λ = 0 (1.73 texels) and at a quarter texel.
     let spread_of = |texels: f32| mix_at(texels).fine_axes.0.length() / (texels * t);
@@ -248,16 +248,22 @@ fn the_box_grid_keeps_the_pixels_variance_and_grows_continuously() {
     assert!((spread_of(l0 * 0.999) - spread_of(l0 * 1.001)).abs() < 0.01, "{} / {}", spread_of(l0 * 0.999), spread_of(l0 * 1.001));
     assert!(spread_of(FINE_GRID_FROM * 1.001) < 0.01);
     // Level 0's grid: about one lookup per texel across, G to four, N times as many
-    // along a long footprint, at most 16; a coarse grid at most 8 × 3 (the GPU's arrays).
-    assert_eq!((LEVEL0_REACH, LEVEL0_GRID_MAX, LEVEL0_TAPS_MAX, SURFACE_GRID, MAX_SURFACE_TAPS), (4.0, 4, 16, 3, MAX_ANISOTROPY * SURFACE_GRID));
-    for (grid, minor, n, want) in [(2, 0.3f32, 1u32, (2u32, 2u32)), (2, 1.5, 1, (2, 2)), (2, 2.0, 3, (6, 2)), (2, 2.5, 1, (3, 3)), (2, 3.0, 2, (5, 3)), (2, 3.4, 1, (4, 4)), (2, 4.0, 3, (4, 4)), (2, 10.0, 1, (4, 4)), (2, 2.0, 8, (8, 2)), (2, 0.0, 1, (2, 2)), (2, f32::NAN, 1, (2, 2)), (3, 0.3, 1, (3, 3)), (3, 1.5, 2, (5, 3)), (3, 3.4, 1, (4, 4)), (3, 0.0, 1, (3, 3))] {
+    // along a long footprint, at most 32 (a grazing footprint four texels across keeps
+    // 8 along); a coarse grid at most 8 × 3; the GPU's arrays hold the larger.
+    assert_eq!((LEVEL0_REACH, LEVEL0_GRID_MAX, LEVEL0_TAPS_MAX, SURFACE_GRID, MAX_SURFACE_TAPS), (4.0, 4, 32, 3, 32));
+    assert!(MAX_SURFACE_TAPS >= MAX_ANISOTROPY * SURFACE_GRID && MAX_SURFACE_TAPS >= LEVEL0_TAPS_MAX);
+    for (grid, minor, n, want) in [(2, 0.3f32, 1u32, (2u32, 2u32)), (2, 1.5, 1, (2, 2)), (2, 2.0, 3, (6, 2)), (2, 2.5, 1, (3, 3)), (2, 3.0, 2, (6, 3)), (2, 3.0, 4, (10, 3)), (2, 3.4, 1, (4, 4)), (2, 4.0, 2, (8, 4)), (2, 4.0, 3, (8, 4)), (2, 10.0, 1, (4, 4)), (2, 2.0, 8, (16, 2)), (2, 0.0, 1, (2, 2)), (2, f32::NAN, 1, (2, 2)), (3, 0.3, 1, (3, 3)), (3, 1.5, 2, (6, 3)), (3, 1.5, 3, (9, 3)), (3, 1.5, 8, (10, 3)), (3, 3.4, 1, (4, 4)), (3, 3.5, 3, (8, 4)), (3, 0.0, 1, (3, 3))] {
         let got = level0_grid_taps(minor, n, grid);
         assert_eq!(got, want, "{minor} texels, N {n}, G {grid}");
         assert!(got.0 * got.1 <= LEVEL0_TAPS_MAX);
     }
-    // Up to two texels across it is the box grid's: G × N·G.
+    // Up to G texels across it is G × N·G: the box grid's while that is within the box
+    // grid's cap of MAX_ANISOTROPY along.
     for n in 1..=8 {
-        assert_eq!(level0_grid_taps(1.9, n, FILTER_GRID), (grid_taps(n, FILTER_GRID), FILTER_GRID));
+        assert_eq!(level0_grid_taps(1.9, n, FILTER_GRID), (n * FILTER_GRID, FILTER_GRID));
+        if n * FILTER_GRID <= MAX_ANISOTROPY {
+            assert_eq!(level0_grid_taps(1.9, n, FILTER_GRID), (grid_taps(n, FILTER_GRID), FILTER_GRID));
+        }
     }
     // Past λ = 1 (3.46 texels) level 0 is still read alone, over the whole footprint,
     // up to LEVEL0_REACH; level 1's box grid is blended in from there until its level
@@ -537,7 +543,10 @@ fn supersampled_far_views_converge_on_the_supersampled_level_0() {
     let e = |s| fabric_runtime::metrics::relative_rmse(&render(&m, &cam, &light, &opts(LevelChoice::Auto { bias: 0.0 }, s)).unwrap(), &truth).unwrap();
     let (e1, e2, e8) = (e(1), e(2), e(8));
     println!("far view, chain against supersampled level 0: 1 spp {:.2}%, 2x2 {:.2}%, 8x8 {:.2}%", 100.0 * e1, 100.0 * e2, 100.0 * e8);
-    assert!(e2 < e1 && e8 < 0.5 * e2, "no convergence: {e1} / {e2} / {e8}");
+    // 8 × 8 samples come within 2% (1.4% measured, the truth's own 16 × 16 samples per
+    // pixel near its floor), well under the 2 × 2's (2.6%; 3.1% with level 0's grid
+    // capped at 16 lookups, when the bound was half of it).
+    assert!(e2 < e1 && e8 < 0.6 * e2 && e8 < 0.02, "no convergence: {e1} / {e2} / {e8}");
 }
 
 #[test]

@@ -164,13 +164,13 @@ fn gpu_matches_the_cpu_twin() {
         assert!(a.cpu.flyaway_pixels * 2 > a.cpu.pixels, "flyaways over half the view: {} of {}", a.cpu.flyaway_pixels, a.cpu.pixels);
         assert_twins_agree(case.name, &a);
     }
-    // Half a texel per pixel at 45°: level 0 alone through its grid of 5 × 3 nearest
+    // Half a texel per pixel at 45°: level 0 alone through its grid of 6 × 3 nearest
     // texels (at least SURFACE_GRID across), most of them repeats, which the GPU lists
     // once each (level0_distinct).
     let half = Case { name: "synthetic at half a texel per pixel, level 0's grid with repeats", camera: Camera::orbit_orthographic(45.0, 30.0, Vec3::new(0.5, 0.5, 0.0), 40.0, 0.25, 32, 32), options: CpuRenderOptions { periodic: true, ..opts.clone() } };
     let scene = fabric_runtime::cpu::render::Scene::new(&synthetic, &half.camera, &lights, half.options.clone()).unwrap();
     let m = scene.level_mix(16.5, 16.5, synthetic.tile.top_z);
-    assert!(m.lo == 0 && m.weight == 0.0 && m.fine_taps == (5, 3), "{m:?}");
+    assert!(m.lo == 0 && m.weight == 0.0 && m.fine_taps == (6, 3), "{m:?}");
     assert!(m.fine_axes.0.length() < synthetic.texel_size().x, "the grid spans less than a texel: {m:?}");
     assert!(fine_grid_traced(m.fine_axes, synthetic.inv_texel_size()), "half a texel across: each lookup traced, {m:?}");
     assert_twins_agree(half.name, &compare(&pass, &synthetic, &lights, &half));

@@ -87,11 +87,11 @@ float fine_grid_spread(float minor) {
 const float LEVEL0_REACH = 4.0;
 const uint REACH_GRID = 2u;
 #define LEVEL0_GRID_MAX 4u
-#define LEVEL0_TAPS_MAX 16u
+#define LEVEL0_TAPS_MAX 32u
 
 // Level 0's grid over a footprint whose minor axis spans `minor` texels, N anisotropic
 // lookups: about one lookup per texel across (ceil(minor), from FILTER_GRID to
-// LEVEL0_GRID_MAX), N times as many along the major axis, at most 16 in all. Twin:
+// LEVEL0_GRID_MAX), N times as many along the major axis, at most 32 in all. Twin:
 // level0_grid_taps.
 uvec2 level0_grid_taps(float minor, uint n) {
     uint across = minor > 0.0 ? max(uint(min(ceil(minor), float(LEVEL0_GRID_MAX))), FILTER_GRID) : FILTER_GRID;

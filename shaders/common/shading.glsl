@@ -286,9 +286,10 @@ uint fly_cell(vec2 offset, vec2 axis, uint taps, vec2 minor_axis, uint taps_mino
     return cs + taps * cr;
 }
 
-// Most lookups of a box grid: MAX_ANISOTROPY along the major axis by the surface grid's
-// G = 3 (FILTER_GRID). Twin: MAX_SURFACE_TAPS in runtime/src/cpu/level.rs.
-const uint MAX_SURFACE_TAPS = 24u;
+// Most lookups of a surface grid: level 0's LEVEL0_TAPS_MAX (32), more than a coarse box
+// grid's MAX_ANISOTROPY along the major axis by G = 3 (FILTER_GRID). Twin:
+// MAX_SURFACE_TAPS in runtime/src/cpu/level.rs.
+const uint MAX_SURFACE_TAPS = 32u;
 
 // Texel k of a surface hit at p on `level`: level 0's nearest texel (k = 0; with a
 // grid, n > 1, distinct texel k of the grid's lookups, weight tap_w[k]), or at

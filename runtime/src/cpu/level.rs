@@ -276,19 +276,22 @@ pub fn fine_grid_spread(minor: f32) -> f32 {
 pub const LEVEL0_REACH: f32 = 4.0;
 
 /// Most lookups per axis of level 0's grid, and in all (shaders/common/level.glsl's
-/// `LEVEL0_GRID_MAX`, `LEVEL0_TAPS_MAX`).
+/// `LEVEL0_GRID_MAX`, `LEVEL0_TAPS_MAX`). With 16 in all, a footprint four texels
+/// across had no lookups to spare along its major axis: satin's 32 px far view at 70°
+/// (4 × 11.7 texels) read a 4 × 4 grid, 5.3% off; with 32, 4 × 8 lookups, 4.4%
+/// (baker/PREFILTER_MEASUREMENTS.md, "Level 0's grid along grazing footprints").
 pub const LEVEL0_GRID_MAX: u32 = 4;
-pub const LEVEL0_TAPS_MAX: u32 = 16;
-/// Most lookups of a surface grid, coarse or level 0's: [`MAX_ANISOTROPY`] ·
-/// [`SURFACE_GRID`] (shaders/common/shading.glsl's `MAX_SURFACE_TAPS`).
-pub const MAX_SURFACE_TAPS: u32 = MAX_ANISOTROPY * SURFACE_GRID;
+pub const LEVEL0_TAPS_MAX: u32 = 32;
+/// Most lookups of a surface grid, coarse ([`MAX_ANISOTROPY`] · [`SURFACE_GRID`]) or
+/// level 0's ([`LEVEL0_TAPS_MAX`]) (shaders/common/shading.glsl's `MAX_SURFACE_TAPS`).
+pub const MAX_SURFACE_TAPS: u32 = if MAX_ANISOTROPY * SURFACE_GRID > LEVEL0_TAPS_MAX { MAX_ANISOTROPY * SURFACE_GRID } else { LEVEL0_TAPS_MAX };
 
 /// The lookups of level 0's grid over a footprint whose minor axis spans `minor`
 /// level-0 texels, with `n` anisotropic lookups and `grid` lookups per axis of the box
 /// filter: about one per texel across (⌈minor⌉, from `grid` to [`LEVEL0_GRID_MAX`]) and
 /// n times as many along the major axis, at most [`LEVEL0_TAPS_MAX`] in all. Up to
-/// `grid` texels across this is the box grid's (`grid_taps(n, grid)` × `grid`) where
-/// that is within [`LEVEL0_TAPS_MAX`]. Twin:
+/// `grid` texels across this is n·`grid` × `grid`, the box grid's (`grid_taps`) where
+/// that is within its cap of [`MAX_ANISOTROPY`] along. Twin:
 /// `level0_grid_taps` in shaders/common/level.glsl.
 pub fn level0_grid_taps(minor: f32, n: u32, grid: u32) -> (u32, u32) {
     let across = if minor > 0.0 { (minor.ceil().min(LEVEL0_GRID_MAX as f32) as u32).max(grid) } else { grid };
