@@ -88,7 +88,7 @@ void main() {
     // ends each loop after its current iteration: loops cut short draw a wrong pixel,
     // silently (a pixel group of 8 left black). A loop of two iterations whose count the
     // compiler cannot know runs one there; elsewhere it always runs two. Such pixels
-    // are counted and the frame is an error (GpuRenderError::LoopBudget).
+    // are counted (RenderStats::loop_cut_pixels), and the command line says so.
     uint probe = 0u;
     for (uint i = 0u; i < (params.max_steps == 0xffffffffu ? 3u : 2u); ++i) {
         ++probe;

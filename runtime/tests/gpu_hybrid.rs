@@ -53,6 +53,7 @@ struct Agreement {
 fn compare(pass: &HybridPass, model: &HybridModel, lights: &[Light], case: &Case) -> Agreement {
     let gpu_model = pass.upload(model, case.options.periodic).unwrap();
     let frame = pass.render(&gpu_model, &case.camera, lights, &case.options, None).unwrap();
+    assert_eq!(frame.stats.loop_cut_pixels, 0, "{}: pixels past the driver's loop budget", case.name);
     let (cpu, cpu_stats) = render_with_stats(model, &case.camera, lights, &case.options).unwrap();
     let rmse = relative_rmse(&frame.image, &cpu).unwrap();
     let exposure = 1.0 / (cpu.pixels.iter().map(|p| p.max_element()).fold(1e-6f32, f32::max));
@@ -860,10 +861,12 @@ fn the_environment_is_seen_behind_meshes() {
 /// lavapipe ends every loop of a shader invocation once 65535 iterations have run in all
 /// (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), silently: the baked felt's far view under the
 /// sky spends up to 65096 of them per 8-pixel group at one sample per pixel (measured),
-/// so at 2 × 2 samples it runs out. The frame is then an error, not groups of black
-/// pixels; on a driver without the limit it is drawn and agrees with the CPU twin.
+/// so at 2 × 2 samples it runs out. The frame then counts those pixels
+/// (`RenderStats::loop_cut_pixels`, which the command line reports) rather than drawing
+/// groups of black pixels unsaid; on a driver without the limit it counts none and
+/// agrees with the CPU twin.
 #[test]
-fn a_frame_past_the_drivers_loop_budget_is_an_error_not_black_pixels() {
+fn pixels_past_the_drivers_loop_budget_are_counted() {
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
     let felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
@@ -872,22 +875,24 @@ fn a_frame_past_the_drivers_loop_budget_is_an_error_not_black_pixels() {
     let options = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, coarse_filter: CoarseFilter::SplitShaded, env: Some(sky_light()), supersampling: 2, ..Default::default() };
     let lavapipe = device.info().name.contains("llvmpipe");
     let gpu_model = pass.upload(&felt, true).unwrap();
-    match pass.render(&gpu_model, &camera, &[], &options, None) {
-        Err(GpuRenderError::LoopBudget { count, device: name }) => {
-            assert!(lavapipe, "{name} reported a loop budget");
-            assert!(count > 0 && count <= 32 * 32, "{count} pixels");
-            println!("{name}: {count} of 1024 pixels past the loop budget");
-        }
-        Ok(frame) => {
-            assert!(!lavapipe, "lavapipe drew a frame past its loop budget");
-            let cpu = render(&felt, &camera, &[], &options).unwrap();
-            let rmse = relative_rmse(&frame.image, &cpu).unwrap();
-            assert!(rmse < 1e-2, "relative RMSE {rmse}");
-        }
-        Err(e) => panic!("{e}"),
+    let frame = pass.render(&gpu_model, &camera, &[], &options, None).unwrap();
+    let cut = frame.stats.loop_cut_pixels;
+    if lavapipe {
+        assert!(cut > 0 && cut <= 32 * 32, "{cut} pixels");
+        println!("{}: {cut} of 1024 pixels past the loop budget", device.info().name);
+    } else {
+        assert_eq!(cut, 0);
+        let rmse = relative_rmse(&frame.image, &render(&felt, &camera, &[], &options).unwrap()).unwrap();
+        assert!(rmse < 1e-2, "relative RMSE {rmse}");
     }
     // One sample per pixel stays within it (gpu_matches_the_cpu_twin draws that view).
     let one = CpuRenderOptions { supersampling: 1, ..options };
-    assert!(pass.render(&gpu_model, &camera, &[], &one, None).is_ok());
+    assert_eq!(pass.render(&gpu_model, &camera, &[], &one, None).unwrap().stats.loop_cut_pixels, 0);
+    // The mesh pass marks its pixels too: the felt on a sphere under the sky, 64², loses
+    // some at the limb on lavapipe (measured: 42).
+    let sphere_cam = Camera { origin: Vec3::new(0.0, -3.0, 1.5), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 64, height: 64 };
+    let mesh = fabric_runtime::scene::Mesh::sphere(1.0, 96, 48);
+    let on_sphere = pass.render_mesh(&gpu_model, &mesh, glam::Vec2::new(4.0, 2.0), &sphere_cam, &[], &one, None).unwrap().stats.loop_cut_pixels;
+    assert!(if lavapipe { on_sphere > 0 && on_sphere < 64 * 64 } else { on_sphere == 0 }, "{on_sphere} pixels on the sphere");
     assert_no_validation_errors(&device);
 }

@@ -249,6 +249,10 @@ pub struct RenderStats {
     pub step_limited_shadow_rays: u64,
     /// Height-field traversal steps of all camera rays.
     pub camera_steps: u64,
+    /// Pixels whose loops the Vulkan driver cut short, so drawn wrong (GPU only:
+    /// lavapipe runs at most 65535 loop iterations per shader invocation;
+    /// runtime/GPU_MEASUREMENTS.md, "lavapipe's loop budget"). Always 0 on the CPU.
+    pub loop_cut_pixels: u64,
 }
 
 impl RenderStats {

@@ -114,7 +114,12 @@ pub fn run(args: DemoArgs) -> Result<()> {
             times.sort_by(f64::total_cmp);
             let sphere_cam = Camera { origin: Vec3::new(0.0, -3.2, 1.6), target: Vec3::ZERO, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 512, height: 512 };
             let sphere = pass.render_mesh(&g, &Mesh::sphere(1.0, 128, 64), Vec2::new(12.0, 6.0), &sphere_cam, &[light], &options, None)?;
-            let line = format!("GPU frame time {:.2} ms at 256x256 (median of 3) on {} ({}); on a sphere at 512x512 {:.2} ms", times[1], device.info().name, device.info().kind, sphere.gpu_ms);
+            let mut line = format!("GPU frame time {:.2} ms at 256x256 (median of 3) on {} ({}); on a sphere at 512x512 {:.2} ms", times[1], device.info().name, device.info().kind, sphere.gpu_ms);
+            // Pixels the driver's loop budget cut short (lavapipe) are drawn wrong: said.
+            let cut = frame.as_ref().map_or(0, |f| f.stats.loop_cut_pixels) + sphere.stats.loop_cut_pixels;
+            if cut > 0 {
+                line += &format!("; {cut} pixel(s) past the driver's loop budget, drawn wrong (runtime/GPU_MEASUREMENTS.md, \"lavapipe's loop budget\")");
+            }
             (frame.context("three frames")?.image, line, Some(sphere.image))
         }
         Err(e) => {

@@ -99,6 +99,12 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
             super::render::warn_if_lit_from_below(&model, &lights, options.env.is_some());
         }
     }
+    if s.loop_cut_pixels > 0 {
+        eprintln!(
+            "warning: {} pixel(s) needed more loop iterations than {} runs per shader invocation (lavapipe ends every loop after 65535 in all), so they are drawn wrong; use a hardware GPU, `--backend cpu` (the tile), fewer samples per pixel or a less grazing view (runtime/GPU_MEASUREMENTS.md, \"lavapipe's loop budget\")",
+            s.loop_cut_pixels, info.name
+        );
+    }
     if s.step_limited_pixels > 0 || s.step_limited_shadow_rays > 0 {
         println!("warning: {} camera rays and {} shadow rays ran out of --max-steps {}", s.step_limited_pixels, s.step_limited_shadow_rays, options.max_steps);
     }
