@@ -100,7 +100,7 @@ pub fn run(device: std::sync::Arc<Device>, model_path: &Path, mesh: Option<&str>
         }
     }
     if s.loop_cut_pixels > 0 {
-        eprintln!(
+        println!(
             "warning: {} pixel(s) needed more loop iterations than {} runs per shader invocation (lavapipe ends every loop after 65535 in all), so they are drawn wrong; use a hardware GPU, `--backend cpu` (the tile), fewer samples per pixel or a less grazing view (runtime/GPU_MEASUREMENTS.md, \"lavapipe's loop budget\")",
             s.loop_cut_pixels, info.name
         );
