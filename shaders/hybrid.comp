@@ -83,17 +83,9 @@ void main() {
         g_lights[k] = params.lights[k];
     }
     PixelTrace t = trace_pixel(x, y);
-    // lavapipe (llvmpipe) counts every loop iteration of an invocation against one
-    // budget of 65535 (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS) and, once it is spent,
-    // ends each loop after its current iteration: loops cut short draw a wrong pixel,
-    // silently (a pixel group of 8 left black). A loop of two iterations whose count the
-    // compiler cannot know runs one there; elsewhere it always runs two. Such pixels
-    // are counted (RenderStats::loop_cut_pixels), and the command line says so.
-    uint probe = 0u;
-    for (uint i = 0u; i < (params.max_steps == 0xffffffffu ? 3u : 2u); ++i) {
-        ++probe;
-    }
-    if (probe < 2u) {
+    // Pixels whose loops the driver cut short are counted (RenderStats::loop_cut_pixels),
+    // and the command line says so.
+    if (loop_budget_spent()) {
         atomicAdd(stats[STAT_LOOPS_CUT], 1u);
     }
     bool finite = !any(isnan(t.radiance)) && !any(isinf(t.radiance));

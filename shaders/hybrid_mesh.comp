@@ -166,11 +166,7 @@ void main() {
     vec3 o = top - d * lift;
     PixelTrace t = trace_mixed(o, d);
     bool finite = !any(isnan(t.radiance)) && !any(isinf(t.radiance));
-    // lavapipe's loop budget (hybrid.comp's probe): a pixel whose loops the driver cut
-    // short leaves alpha 0, which the readback counts (RenderStats::loop_cut_pixels).
-    uint probe = 0u;
-    for (uint i = 0u; i < (params.max_steps == 0xffffffffu ? 3u : 2u); ++i) {
-        ++probe;
-    }
-    imageStore(out_image, at, vec4(finite ? t.radiance : vec3(0.0), probe < 2u ? 0.0 : 1.0));
+    // A pixel whose loops the driver cut short leaves alpha 0, which the readback counts
+    // (RenderStats::loop_cut_pixels).
+    imageStore(out_image, at, vec4(finite ? t.radiance : vec3(0.0), loop_budget_spent() ? 0.0 : 1.0));
 }

@@ -393,4 +393,18 @@ PixelTrace trace_mixed(vec3 o, vec3 d) {
     return out_;
 }
 
+// Whether the driver cut this invocation's loops short: lavapipe (llvmpipe) counts every
+// loop iteration of an invocation against one budget of 65535 (gallivm's
+// LP_MAX_TGSI_LOOP_ITERATIONS) and, once it is spent, ends each loop after its current
+// iteration, silently (groups of 8 pixels left black or too dark). Called last: a loop
+// of two iterations whose count the compiler cannot know runs one there; elsewhere it
+// always runs two (runtime/GPU_MEASUREMENTS.md, "lavapipe's loop budget").
+bool loop_budget_spent() {
+    uint probe = 0u;
+    for (uint i = 0u; i < (params.max_steps == 0xffffffffu ? 3u : 2u); ++i) {
+        ++probe;
+    }
+    return probe < 2u;
+}
+
 #endif // TRACE_GLSL

@@ -46,17 +46,20 @@ impl OffscreenTarget {
     /// The pixels of the readback buffer whose alpha is 0: the mesh pass's mark of a
     /// pixel whose loops the driver cut short (hybrid_mesh.comp).
     pub fn zero_alpha_pixels(&self) -> VkResult<u32> {
+        Ok(self.halves()?.chunks_exact(4).filter(|p| half::f16::from_bits(p[3]).to_f32() == 0.0).count() as u32)
+    }
+
+    /// The readback buffer as f16 bits, RGBA per pixel.
+    fn halves(&self) -> VkResult<&[u16]> {
         let bytes = self.readback.mapped().ok_or_else(|| VkError::Invalid("readback buffer is not mapped".into()))?;
-        let halves: &[u16] = bytemuck::try_cast_slice(bytes).map_err(|e| VkError::Invalid(format!("readback layout: {e}")))?;
-        Ok(halves.chunks_exact(4).filter(|p| half::f16::from_bits(p[3]).to_f32() == 0.0).count() as u32)
+        bytemuck::try_cast_slice(bytes).map_err(|e| VkError::Invalid(format!("readback layout: {e}")))
     }
 
     /// Decodes the readback buffer (after the submission completed) into linear RGB.
     pub fn to_image(&self) -> VkResult<crate::image::Image> {
-        let bytes = self.readback.mapped().ok_or_else(|| VkError::Invalid("readback buffer is not mapped".into()))?;
         let (w, h) = (self.color.width, self.color.height);
-        let halves: &[u16] = bytemuck::try_cast_slice(bytes).map_err(|e| VkError::Invalid(format!("readback layout: {e}")))?;
-        let pixels = halves
+        let pixels = self
+            .halves()?
             .chunks_exact(4)
             .map(|p| Vec3::new(half::f16::from_bits(p[0]).to_f32(), half::f16::from_bits(p[1]).to_f32(), half::f16::from_bits(p[2]).to_f32()))
             .collect();
