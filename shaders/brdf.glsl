@@ -328,6 +328,16 @@ float cloth_diffuse_env_factor(uint law, vec3 wo) {
     return mu_o > 1e-6 ? 4.0 * (1.0 - mu_o * log(1.0 + 1.0 / mu_o)) : 4.0;
 }
 
+// A texel's visibility gradient (format 1.12): max(1 + g_o.(wo.x, wo.y) + g_i.(wi.x, wi.y), 0),
+// g = (g_o.x, g_o.y, g_i.x, g_i.y) each clamped to +-CLOTH_GRADIENT_MAX; tile space, as
+// mu of the diffuse law. What a texel on a yarn's flank shows more of from that side.
+const float CLOTH_GRADIENT_MAX = 2.0;
+
+float cloth_visibility_gradient(vec4 g, vec3 wi, vec3 wo) {
+    vec4 c = min(max(g, vec4(-CLOTH_GRADIENT_MAX)), vec4(CLOTH_GRADIENT_MAX));
+    return max(1.0 + c.x * wo.x + c.y * wo.y + c.z * wi.x + c.w * wi.y, 0.0);
+}
+
 // THE TRANSMISSION TERM of a BSDF texel (format 1.3): diffuse kd and one lobe about the
 // transmitted direction, attenuated along the slant path with optical depth tau. All
 // zeros: nothing comes through.

@@ -3,9 +3,11 @@
 // light and view directions, with nothing but the model's arrays bound. An engine's own
 // shader would do the same in its lighting code: texel_brdf() then texel_response().
 //
-// Bindings (set 0): 0-6 the model (common/model.glsl; binding 7-8 are declared by the
-// includes but not read by this program, bind any small buffer there), 9 = readonly
-// Query[], 10 = writeonly vec4[] (rgb: reflected radiance per unit irradiance).
+// Bindings (set 0): 0-6 the model (common/model.glsl) and 13 its view tilt and gradient
+// records (GpuModel::view_tilt_array; texel_response reads the texels' visibility
+// gradients there, format 1.12); 7-8 and 10-12 are declared by the includes or left
+// free but not read by this program (bind any small buffer there); 9 = readonly
+// Query[], 14 = writeonly vec4[] (rgb: reflected radiance per unit irradiance).
 // Push constant: the number of queries. runtime/tests/shader_kit.rs runs it against the
 // Rust twin.
 #version 450
@@ -22,7 +24,7 @@ struct Query {
 };
 
 layout(std430, set = 0, binding = 9) readonly buffer Queries { Query queries[]; };
-layout(std430, set = 0, binding = 10) writeonly buffer Responses { vec4 responses[]; };
+layout(std430, set = 0, binding = 14) writeonly buffer Responses { vec4 responses[]; };
 layout(push_constant) uniform Push { uint count; } push;
 
 void main() {

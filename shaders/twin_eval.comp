@@ -4,7 +4,9 @@
 // the function (kind) and its arguments; the model and frame bindings are the renderer's.
 //
 // Bindings (set 0): 0-8 as hybrid.comp (model, params, edit mask); 9 = readonly
-// TwinInput[], 10 = writeonly TwinOutput[]. Push constant: the number of inputs.
+// TwinInput[]; 10-11 unused (any small buffer); 12-13 as hybrid.comp (transmission,
+// view tilt and gradient records); 14 = writeonly TwinOutput[]. Push constant: the
+// number of inputs.
 #version 450
 #extension GL_GOOGLE_include_directive : require
 
@@ -33,7 +35,7 @@ struct TwinOutput {
 };
 
 layout(std430, set = 0, binding = 9) readonly buffer Inputs { TwinInput inputs[]; };
-layout(std430, set = 0, binding = 10) writeonly buffer Outputs { TwinOutput outputs[]; };
+layout(std430, set = 0, binding = 14) writeonly buffer Outputs { TwinOutput outputs[]; };
 layout(push_constant) uniform Push { uint count; } push;
 
 LevelMix choose_levels(float z) {
@@ -106,6 +108,7 @@ void main() {
         o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z),
                    cloth_diffuse_cosine(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.a.xyz, e.b.xyz),
                    cloth_diffuse_env_factor(CLOTH_DIFFUSE_LOMMEL_SEELIGER, e.b.xyz));
+        o.y = vec4(cloth_visibility_gradient(uintBitsToFloat(e.u), e.a.xyz, e.b.xyz), 0.0, 0.0, 0.0);
     }
     outputs[n] = o;
 }

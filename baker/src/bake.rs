@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothParams, ClothTransmission, DiffuseLaw, FiberLobes};
-use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedTransmission, Surface, Tile};
+use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedGradient, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -31,6 +31,7 @@ use serde::Serialize;
 
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
+use crate::fit::gradient::{GradientOptions, refine_texel_with_gradient, with_gradient};
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, unit_albedos};
 use crate::fit::features::texel_features;
@@ -99,6 +100,9 @@ pub struct BakeOptions {
     /// (ridge towards its cluster) and store level 0 per texel; `None` keeps the
     /// paper's clustered level 0.
     pub per_texel_ridge: Option<f64>,
+    /// With the per-texel refinement, fit each texel's visibility gradient too
+    /// (`fit::gradient`, format 1.12); `None`: none.
+    pub gradient: Option<GradientOptions>,
     /// Scale of the normal map's slope (its tilt from +Z): 1 keeps the geometry stage's
     /// normals, 0 makes every normal +Z. Light reaches a volumetric yarn's sides that
     /// face away from it, which a fully tilted normal's max(n·ω_i, 0) cannot show.
@@ -187,6 +191,9 @@ impl Default for BakeOptions {
             dense_pairs: 48,
             dense_spp: 32,
             per_texel_ridge: Some(0.05),
+            // Twill 64² (24 pairs, K = 32): held-out 16.6 → 14.3%, satin 26.8 → 25.9%
+            // (baker/FIT_MEASUREMENTS.md, "The visibility gradient").
+            gradient: Some(GradientOptions::default()),
             normal_slope: 1.0,
             relief: 0.0,
             surface_offset: 0.0,
@@ -276,6 +283,8 @@ pub struct BakeReport {
     pub flyaway_voxels: usize,
     /// The lobes' energy bound (`fit::energy`): what it found and what it scaled down.
     pub energy: EnergyReport,
+    /// The texels' visibility gradients (`fit::gradient`; None: off).
+    pub gradient: Option<GradientReport>,
     /// Cluster lobes held at k = 0 because no training sample came within three widths
     /// of their ridge (`cluster_fit::LOBE_SUPPORT_MIN`), of `cluster_lobes` in all.
     pub unseen_lobes: usize,
@@ -293,6 +302,16 @@ pub struct BakeReport {
     pub total_seconds: f64,
     pub input_bytes: u64,
     pub model_bytes: u64,
+}
+
+/// The texels' visibility gradients (`fit::gradient`): |g| over the texels, and the
+/// training error (per texel, over 4×4 blocks) of the same refinement without them.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct GradientReport {
+    pub median: f32,
+    pub p90: f32,
+    pub error_without: f64,
+    pub block_error_without: f64,
 }
 
 /// The lobes' energy bound (`fit::energy`): the worst albedo of the fitted lobes, before
@@ -472,7 +491,7 @@ pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], para
         table.push(p);
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(frames[j].n, frames[j].t, clusters.get(j).copied().unwrap_or(0) as u16)).collect();
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None, gradient: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
@@ -484,7 +503,7 @@ pub fn level0_per_texel(g: &Geometry, frames: &[TexelFrames], params: &[ClothPar
         let lobes: Vec<_> = p.lobes().iter().enumerate().map(|(l, lobe)| (*lobe, frames[j][l].n, frames[j][l].t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None, gradient: None }
 }
 
 /// A level-0 texel's frame per lobe (lobe 0's also the diffuse term's).
@@ -714,22 +733,53 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // Per-texel refinement of the linear parameters.
     let t = Instant::now();
     let mut energy = EnergyReport { lobe_albedo_max: LOBE_ALBEDO_MAX, worst_cluster_albedo, clusters_capped, ..Default::default() };
+    let mut texel_gradients: Option<Vec<[f32; 4]>> = None;
+    let mut gradient_report: Option<GradientReport> = None;
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
             let bar = begin_stage(progress, "per-texel refinement", 1);
             // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
             let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
-            let refined: Vec<(ClothParams, f32)> = (0..texels)
+            let refined: Vec<(ClothParams, f32, [f32; 4], Option<ClothParams>)> = (0..texels)
                 .into_par_iter()
                 .map(|j| {
-                    let t: Vec<LobeTarget> = by_texel.group(j).iter().map(|&i| &samples[i as usize]).map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
+                    let texel_samples = by_texel.group(j).iter().map(|&i| &samples[i as usize]);
+                    let t: Vec<LobeTarget> = texel_samples.clone().map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
                     let c = clusters[j] as usize;
-                    cap_lobes(&refine_texel(&t, &params[c], ridge, options.fit.reading), &unit[c])
+                    let plain = cap_lobes(&refine_texel(&t, &params[c], ridge, options.fit.reading), &unit[c]);
+                    match &options.gradient {
+                        Some(go) => {
+                            let pairs: Vec<(Vec3, Vec3)> = texel_samples.map(|s| dirs[s.dirs as usize]).collect();
+                            let (p, g) = refine_texel_with_gradient(&t, &pairs, &params[c], ridge, go, options.fit.reading);
+                            let (p, albedo) = cap_lobes(&p, &unit[c]);
+                            (p, albedo, g, Some(plain.0))
+                        }
+                        None => (plain.0, plain.1, [0.0; 4], None),
+                    }
                 })
                 .collect();
-            let (refined, albedos): (Vec<ClothParams>, Vec<f32>) = refined.into_iter().unzip();
+            let albedos: Vec<f32> = refined.iter().map(|r| r.1).collect();
             (energy.worst_texel_albedo, energy.texels_capped) = albedo_summary(&albedos);
             drop(by_texel);
+            if options.gradient.is_some() {
+                // What the gradient bought: the training error of the refinement without it.
+                let plain: Vec<ClothParams> = refined.iter().map(|r| r.3.unwrap_or(r.0)).collect();
+                let predictions = predict_images(&samples, &|hit| &plain[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
+                let (error_without, block_error_without) = image_errors(&predictions, &training.images, nx, ny);
+                let mut size: Vec<f32> = refined.iter().map(|r| r.2.iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+                size.sort_by(f32::total_cmp);
+                let q = |f: f64| size.get(((size.len() as f64 * f) as usize).min(size.len().saturating_sub(1))).copied().unwrap_or(0.0);
+                gradient_report = Some(GradientReport { median: q(0.5), p90: q(0.9), error_without, block_error_without });
+                texel_gradients = Some(refined.iter().map(|r| r.2).collect::<Vec<[f32; 4]>>());
+            }
+            let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.0).collect();
+            let geo_of = |s: &Sample| match &texel_gradients {
+                Some(g) => {
+                    let (wi, wo) = dirs[s.dirs as usize];
+                    with_gradient(geo_of(s), g[s.hit as usize], wi, wo)
+                }
+                None => geo_of(s),
+            };
             let predictions = predict_images(&samples, &|hit| &refined[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
             let (e, be) = image_errors(&predictions, &training.images, nx, ny);
             bar.finish();
@@ -769,6 +819,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         None => level0_framed(&geometry, &lobe0_frames, &clusters, &params),
     };
     let mut model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
+    model.levels[0].gradient = texel_gradients.as_ref().map(|g| g.iter().map(|g| PackedGradient::new(*g)).collect());
     if let Some(t) = &texel_transmission {
         model.levels[0].transmission = Some(t.iter().map(PackedTransmission::new).collect());
     }
@@ -881,6 +932,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         relief: options.relief,
         flyaway_voxels: geometry.flyaways.len(),
         energy,
+        gradient: gradient_report,
         unseen_lobes: fits.iter().map(|f| f.unseen_lobes as usize).sum(),
         cluster_lobes: fits.iter().map(|f| f.params.lobe_count as usize).sum(),
         flyaways: flyaway_report,

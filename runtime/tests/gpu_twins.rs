@@ -11,7 +11,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use fabric_runtime::brdf::twin::SplitMix64;
-use fabric_runtime::brdf::{DiffuseLaw, cloth_diffuse_cosine, cloth_diffuse_env_factor};
+use fabric_runtime::brdf::{DiffuseLaw, cloth_diffuse_cosine, cloth_diffuse_env_factor, cloth_visibility_gradient};
 use fabric_runtime::cpu::flyaways::{FlyawayGrid, flyaway_opacity, visit_flyaways};
 use fabric_runtime::cpu::heightfield::{HeightTracer, HfTrace};
 use fabric_runtime::cpu::shading::{texel_response, volume_factor};
@@ -60,6 +60,11 @@ fn evaluate(device: &CheckedDevice, model: &HybridModel, periodic: bool, inputs:
     buffers.push(support::storage(device, "params", bytemuck::bytes_of(&params)));
     buffers.push(support::storage(device, "mask", &[0u8; 4]));
     buffers.push(support::storage(device, "inputs", bytemuck::cast_slice(inputs)));
+    buffers.push(support::storage(device, "unused 10", &[0u8; 16]));
+    buffers.push(support::storage(device, "unused 11", &[0u8; 16]));
+    for (name, bytes) in [layout_data.transmission_array(), layout_data.view_tilt_array()] {
+        buffers.push(support::storage(device, &name, &bytes));
+    }
     let refs: Vec<&Buffer> = buffers.iter().collect();
     let out = support::run_compute(device, "twin_eval.comp", &refs, (inputs.len() * size_of::<TwinOutput>()) as u64, inputs.len() as u32);
     bytemuck::pod_collect_to_vec(&out)
@@ -176,6 +181,11 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                     e.a = v4(rng.unit_vector(), 0.0);
                     e.b = v4(rng.unit_vector(), 0.0);
                     e.c = [rng.range(0.0, 1.0), rng.range(-0.1, 2.0), rng.log_range(1e-3, 1.0), 0.0];
+                    // A visibility gradient, past its clamp one time in five (its own
+                    // stream, so that the other scalars' inputs stay as they were).
+                    let s = if k % 5 == 0 { 3.0 } else { 1.0 };
+                    let mut own = SplitMix64(0x6772_0000 + k as u64);
+                    e.u = [0; 4].map(|_| own.range(-s, s).to_bits());
                 }
             }
             inputs.push(e);
@@ -279,7 +289,8 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let n = Vec3::new(e.a[1], e.b[0], 1.0).normalize();
                 let d = cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, n, wi, wo);
                 let h = cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, wo);
-                rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6))
+                let m = cloth_visibility_gradient(e.u.map(f32::from_bits), wi, wo);
+                rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6)).max((m - gy.x).abs())
             }
         };
         // A NaN anywhere in the GPU's outputs is a mismatch: the max chains above drop NaN
@@ -322,5 +333,9 @@ fn every_include_agrees_with_its_rust_twin() {
     // The Lommel–Seeliger diffuse law (format 1.6) through texel_response.
     let mut ls = examples::synthetic_model(64, 7);
     ls.meta.diffuse = DiffuseLaw::LommelSeeliger;
+    // With a visibility gradient on every level (format 1.12: read after the view tilts
+    // in binding 13) through texel_response.
+    examples::add_view_tilts(&mut ls, 0.3, 5);
+    examples::add_gradients(&mut ls, 7);
     check(&ls, true, &device);
 }

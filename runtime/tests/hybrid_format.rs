@@ -29,6 +29,14 @@ fn tilted_sample() -> HybridModel {
     m
 }
 
+/// The sample with a visibility gradient on every level (format 1.12).
+fn gradient_sample() -> HybridModel {
+    let mut m = sample();
+    examples::add_gradients(&mut m, 2);
+    m.validate().expect("the gradient sample is valid");
+    m
+}
+
 /// The sample with spread records on its coarse flyaways (format 1.5).
 fn spread_sample() -> HybridModel {
     let mut m = sample();
@@ -237,6 +245,40 @@ fn view_tilts_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
     let plain = format::read(&parts.assemble()).unwrap();
     assert!(plain.levels.iter().all(|l| l.view_tilt.is_none()));
     assert_eq!(plain, sample());
+}
+
+#[test]
+fn gradients_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = gradient_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    let back = format::read(&bytes).unwrap();
+    assert_eq!(back, m);
+    assert!(m.levels.iter().all(|l| l.gradient.as_ref().is_some_and(|g| g.len() == (l.width * l.height) as usize)));
+    let g = back.levels[0].texel_brdf(0, 0).gradient;
+    assert!(g != [0.0; 4] && (g[0] + 0.2).abs() < 1e-3, "texel (0, 0) decodes its gradient: {g:?}");
+    // Optional: a 1.11 reader skips the section and shades every texel with g = 0.
+    let mut parts = Parts::of(&bytes);
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Gradient as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4002;
+    }
+    let plain = format::read(&parts.assemble()).unwrap();
+    assert_eq!(plain, sample());
+    assert_eq!(plain.levels[0].texel_brdf(0, 0).gradient, [0.0; 4]);
+}
+
+#[test]
+fn gradient_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("NaN g_o.x", |p| p.find(SectionKind::Gradient, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::GradientParam { field: "g_o.x", level: 0, .. }))),
+        ("infinite g_i.y", |p| p.find(SectionKind::Gradient, 1)[6..8].copy_from_slice(&0x7c00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::GradientParam { field: "g_i.y", level: 1, .. }))),
+        ("g_i.x = 3", |p| p.find(SectionKind::Gradient, 0)[4..6].copy_from_slice(&0x4200u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::GradientParam { field: "g_i.x", .. }))),
+        ("one record short", |p| { let t = p.find(SectionKind::Gradient, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "visibility gradient records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::Gradient, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "GRADIENT")),
+        ("for a level that does not exist", |p| p.entry(SectionKind::Gradient, 2).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+    ];
+    run_catalogue(&format::to_bytes(&gradient_sample()).unwrap(), cases);
 }
 
 #[test]
@@ -609,14 +651,14 @@ fn semantic_corruption_catalogue() {
 /// never a panic. With the CRCs recomputed, semantic damage must be caught too.
 fn randomized_corruption(iterations: u64, seed: u64) -> (u64, u64) {
     // The sample (wide surfaces, compact flyaway nodes), the compact sample (every
-    // compact record) and the gain sample (spread records and axis groups, 1.8; path
-    // gains, 1.9), in turn.
-    let models = [sample(), compact_sample(), gain_sample()];
+    // compact record), the gain sample (spread records and axis groups, 1.8; path
+    // gains, 1.9) and the gradient sample (1.12), in turn.
+    let models = [sample(), compact_sample(), gain_sample(), gradient_sample()];
     let files = models.each_ref().map(|m| format::to_bytes(m).unwrap());
     let mut rng = fabric_runtime::brdf::twin::SplitMix64(seed);
     let (mut rejected, mut accepted) = (0, 0);
     for it in 0..iterations {
-        let (good, model) = (&files[(it % 3) as usize], &models[(it % 3) as usize]);
+        let (good, model) = (&files[(it % models.len() as u64) as usize], &models[(it % models.len() as u64) as usize]);
         let kind = rng.next_u64() % 6;
         let b = match kind {
             k if k < format::mutate::KINDS => format::mutate::mutate(good, k, &mut rng),
@@ -707,7 +749,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("gradient.hyb", gradient_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
         m

@@ -25,7 +25,9 @@ struct Query {
 #[test]
 fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
     let device = CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)");
-    let model = examples::sample_model();
+    // With visibility gradients (format 1.12), which the kit reads from binding 13.
+    let mut model = examples::sample_model();
+    examples::add_gradients(&mut model, 2);
     let arrays = GpuModel::new(&model, false).unwrap();
     let mut rng = SplitMix64(5);
     let mut queries = Vec::new();
@@ -44,6 +46,12 @@ fn the_example_evaluates_a_models_brdf_as_the_rust_twin_does() {
     buffers.push(support::storage(&device, "unused params", &[0u8; std::mem::size_of::<fabric_runtime::hybrid::gpu_layout::GpuRenderParams>()]));
     buffers.push(support::storage(&device, "unused mask", &[0u8; 4]));
     buffers.push(support::storage(&device, "queries", bytemuck::cast_slice(&queries)));
+    // Bindings 10–12 are not read; 13 holds the visibility gradients (format 1.12).
+    for name in ["unused 10", "unused 11", "unused 12"] {
+        buffers.push(support::storage(&device, name, &[0u8; 16]));
+    }
+    let (name, bytes) = arrays.view_tilt_array();
+    buffers.push(support::storage(&device, name, &bytes));
     let refs: Vec<&Buffer> = buffers.iter().collect();
     let out = support::run_compute(&device, "example_texel_brdf.comp", &refs, (queries.len() * 16) as u64, queries.len() as u32);
     let got: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&out);

@@ -48,7 +48,7 @@ struct GpuLevel {
     uint tilt_base;     // first view tilt record (binding 13), NO_NODE: none
     uint spread_base;   // first flyaway spread word in binding 6 (after the nodes), NO_NODE: none
     float fly_gain[9];  // opacity exponent gain at polar 0, 10, ... 80 degrees (format 1.9; 1: none)
-    uint pad;
+    uint grad_base;     // first visibility gradient word in binding 13 (after the tilts), NO_NODE: none
 };
 
 struct GpuQuadLevel {
@@ -91,7 +91,8 @@ uint fly_spread_word(uint w) {
 // one zero record when none).
 layout(std430, set = 0, binding = 12) readonly buffer TransBlock { uvec2 transmissions[]; };
 // PackedViewTilt records of every coarse level that has them, 12 bytes = 3 uints each
-// (format 1.4; one zero record when none).
+// (format 1.4), then PackedGradient records of every level that has them, 2 uints each
+// (format 1.12; one zero record when neither).
 layout(std430, set = 0, binding = 13) readonly buffer TiltBlock { uint view_tilts[]; };
 
 // i mod n in [0, n) for n > 0 (Rust's rem_euclid); GLSL's % is undefined for negative
@@ -173,6 +174,7 @@ struct TexelRef {
     vec3 tilt_nv;
     // A flyaway whose lobes follow the cylinder law (cloth_cylinder_lobe; in_fiber_frame).
     bool cylinder;
+    uint grad;          // its visibility gradient's first word in binding 13, NO_NODE: none
 };
 
 // Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
@@ -182,6 +184,7 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
     TexelRef r;
     r.lobe_base = l.lobe_base;
     r.trans = l.trans_base == NO_NODE ? NO_NODE : l.trans_base + index;
+    r.grad = l.grad_base == NO_NODE ? NO_NODE : l.grad_base + 2u * index;
     if (l.surface == GPU_SURFACE_CLUSTERED) {
         uvec2 t = clustered_texels[l.texel_base + index];
         r.header = l.header_base + (t.y >> 16);
@@ -197,6 +200,17 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
     r.tilt_nv = vec3(0.0, 0.0, 1.0);
     r.cylinder = false;
     return r;
+}
+
+// Texel r's visibility gradient g = (g_o.x, g_o.y, g_i.x, g_i.y) (PackedGradient of
+// runtime/src/hybrid/lobe.rs; Level::texel_brdf); zero where its level has none.
+vec4 texel_gradient(TexelRef r) {
+    if (r.grad == NO_NODE) {
+        return vec4(0.0);
+    }
+    uint a = view_tilts[r.grad];
+    uint b = view_tilts[r.grad + 1u];
+    return vec4(f16_value(a), f16_value(a >> 16), f16_value(b), f16_value(b >> 16));
 }
 
 // PackedViewTilt record `index` (runtime/src/hybrid/lobe.rs).

@@ -2,7 +2,7 @@
 //! configurations ([`directions`]), training renderings and the model-side samples
 //! ([`samples`]), per-texel features ([`features`]), the lobes' energy bound ([`energy`]), clustering ([`kmeans`]), the
 //! per-cluster fit ([`cluster_fit`], with its frame offset [`frames`]: Nelder–Mead over [`simplex`] with the linear
-//! parameters by [`nnls`]), the flyaways' fit ([`flyaways`]) and, for a BSDF, the
+//! parameters by [`nnls`]), each texel's visibility gradient ([`gradient`]), the flyaways' fit ([`flyaways`]) and, for a BSDF, the
 //! transmission term's ([`transmission`]). The pipeline that
 //! chains them is `crate::bake`.
 
@@ -12,6 +12,7 @@ pub mod energy;
 pub mod features;
 pub mod flyaways;
 pub mod frames;
+pub mod gradient;
 pub mod kmeans;
 pub mod nnls;
 pub mod openness;

@@ -488,6 +488,22 @@ pub fn cloth_diffuse_env_factor(law: DiffuseLaw, wo: Vec3) -> f32 {
     }
 }
 
+/// Largest |g| of one coefficient of a visibility gradient.
+pub const GRADIENT_MAX: f32 = 2.0;
+
+/// A level-0 texel's visibility gradient (format 1.12): the first-order change of what
+/// the texel shows with the directions' slant across the tile,
+/// max(1 + g_o·(ω_o,x, ω_o,y) + g_i·(ω_i,x, ω_i,y), 0), g = (g_o,x, g_o,y, g_i,x, g_i,y),
+/// each clamped to ±[`GRADIENT_MAX`]. A texel on a yarn's flank is seen more, and lit
+/// more, from that flank's side: masking and shadowing by its neighbours that the
+/// height field is too smooth to cast (baker/FIT_MEASUREMENTS.md, "The visibility
+/// gradient"). Tile space, as μ of the diffuse law; 1 for g = 0 and for ω_i = ω_o = ẑ.
+#[inline]
+pub fn cloth_visibility_gradient(g: [f32; 4], wi: Vec3, wo: Vec3) -> f32 {
+    let c = |x: f32| x.max(-GRADIENT_MAX).min(GRADIENT_MAX);
+    (1.0 + c(g[0]) * wo.x + c(g[1]) * wo.y + c(g[2]) * wi.x + c(g[3]) * wi.y).max(0.0)
+}
+
 /// Largest optical-depth parameter τ of a transmission term.
 pub const TAU_MAX: f32 = 16.0;
 /// Smallest |cos| in the transmission's attenuation (caps 1/μ at 20).

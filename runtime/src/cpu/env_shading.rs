@@ -35,6 +35,11 @@
 //! for Lambert; exact for a constant map, and for Lommel–Seeliger an approximation
 //! where the map varies across the hemisphere).
 //!
+//! A texel's visibility gradient (`brdf::cloth_visibility_gradient`, linear in ω_i) is
+//! read at each lookup group's mean direction, and for the diffuse term at the cosine
+//! lobe's mean direction (2/3) n_0: exact for a constant map over n_0's whole hemisphere,
+//! an approximation where the map varies within a group or the tile plane cuts it.
+//!
 //! A flyaway's lobe under the cylinder law (format 1.11, `brdf::cloth_cylinder_lobe`)
 //! is cut the same way over the whole circle φ_i ∈ (−π, π), with R = k F c^a cos θ c,
 //! c = cos(φ_i/2), and no falloff ([`EnvSide::Cylinder`]).
@@ -71,7 +76,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -142,6 +147,13 @@ impl EnvGroup {
         self.axis += n.axis * l;
         self.lum += l;
         self.sigma2 += l * n.sigma * n.sigma;
+    }
+
+    /// The group's mean direction, weighted as its axis is (length ≤ 1; zero when empty):
+    /// where a factor linear in ω_i, the visibility gradient, is read for the group.
+    #[inline]
+    pub fn mean_axis(&self) -> Vec3 {
+        if self.lum > 0.0 { self.axis * (1.0 / self.lum) } else { Vec3::ZERO }
     }
 
     /// The group's lookup, and the group emptied (zero when empty).
@@ -310,7 +322,9 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
     let n0 = b.frames[0].n;
     let mut r = Vec3::ZERO;
     if kd.max_element() > 0.0 {
-        r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, wo));
+        // The gradient at the cosine lobe's mean direction, (2/3) n_0.
+        let m = cloth_visibility_gradient(b.gradient, n0 * (2.0 / 3.0), wo);
+        r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, wo) * m);
     }
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
         let mut group = EnvGroup::default();
@@ -318,10 +332,12 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
         lobe_env_nodes(lobe, p.eta, p.a, frame, wo, reading, side, budget, |node, closes| {
             group.add(&node);
             if closes {
-                r += group.flush(env);
+                let m = cloth_visibility_gradient(b.gradient, group.mean_axis(), wo);
+                r += m * group.flush(env);
             }
         });
-        r += group.flush(env);
+        let m = cloth_visibility_gradient(b.gradient, group.mean_axis(), wo);
+        r += m * group.flush(env);
     }
     r
 }
@@ -418,7 +434,7 @@ mod tests {
     use crate::scene::{EnvMapOptions, Sky, direction_from_angles};
 
     fn texel(kd: Vec3, lobes: &[ClothLobe], n: Vec3, t: Vec3) -> TexelBrdf {
-        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES], transmission: Default::default(), cylinder: false }
+        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES], transmission: Default::default(), gradient: [0.0; 4], cylinder: false }
     }
 
     #[test]
@@ -453,6 +469,49 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_visibility_gradient_under_an_environment_tracks_the_integral() {
+        // The gradient (format 1.12) is read at each lookup group's mean direction and
+        // at (2/3) n_0 for the diffuse term; the brute-force integral applies it to every
+        // direction. Under a constant map, and under the sky with its sun taken out as a
+        // light, as the renderers take it (the light shaded with the gradient exactly).
+        let sky = Sky::default().env_map(EnvMapOptions { scale: 1.0, rotate_deg: 40.0 }).unwrap();
+        let constant = EnvMap::constant(Vec3::ONE).unwrap();
+        let g = [0.4, -0.3, 0.25, 0.5];
+        let mut worst = [0.0f32; 2];
+        for (m, map) in [&constant, &sky].into_iter().enumerate() {
+            let env = if m == 0 { PrefilteredEnv::new(map) } else { PrefilteredEnv::with_lights(map, crate::scene::ExtractOptions::default()).unwrap() };
+            let lit = |b: &TexelBrdf, wo: Vec3| -> Vec3 {
+                env.lights.iter().map(|l| {
+                    let s = l.sample(Vec3::ZERO);
+                    if s.wi.z > 0.0 { s.irradiance * super::super::shading::texel_response(b, s.wi, wo, BrdfReading::Bounded, DiffuseLaw::LommelSeeliger) } else { Vec3::ZERO }
+                }).sum()
+            };
+            for (lobe, n, t) in [
+                (ClothLobe { k: Vec3::ONE, beta: 0.3, gamma: 0.8 }, Vec3::new(0.2, 0.1, 1.0), Vec3::Y),
+                (ClothLobe { k: Vec3::ONE, beta: 0.1, gamma: 0.0 }, Vec3::Z, Vec3::X),
+                (ClothLobe { k: Vec3::ONE, beta: 0.6, gamma: 0.0 }, Vec3::new(-0.3, 0.4, 0.9), Vec3::new(1.0, 1.0, 0.0)),
+            ] {
+                for kd in [Vec3::ZERO, Vec3::splat(0.3)] {
+                    for wo in [direction_from_angles(10.0, 0.0), direction_from_angles(50.0, 70.0), direction_from_angles(70.0, 200.0)] {
+                        let mut b = texel(kd, &[lobe], n, t);
+                        b.gradient = g;
+                        let exact = texel_env_response_quadrature(&b, wo, BrdfReading::Bounded, false, DiffuseLaw::LommelSeeliger, map, 600);
+                        let sg = texel_env_response(&b, wo, BrdfReading::Bounded, false, DiffuseLaw::LommelSeeliger, EnvBudget::SURFACE, &env) + lit(&b, wo);
+                        // The same texel without its gradient: the mixture's own error.
+                        b.gradient = [0.0; 4];
+                        let plain = (texel_env_response(&b, wo, BrdfReading::Bounded, false, DiffuseLaw::LommelSeeliger, EnvBudget::SURFACE, &env) + lit(&b, wo) - texel_env_response_quadrature(&b, wo, BrdfReading::Bounded, false, DiffuseLaw::LommelSeeliger, map, 600)).length();
+                        let e = ((sg - exact).length() - plain).max(0.0) / exact.length().max(1e-6);
+                        worst[m] = worst[m].max(e);
+                    }
+                }
+            }
+        }
+        eprintln!("visibility gradient under a constant map / the sky: worst error beyond the mixture's own {:.4} / {:.4}", worst[0], worst[1]);
+        // Measured 2.0% and 2.1%.
+        assert!(worst[0] <= 0.03 && worst[1] <= 0.05, "{worst:?}");
     }
 
     #[test]

@@ -54,6 +54,8 @@ pub enum ModelError {
     TransmissionParam { level: usize, texel: usize, field: &'static str, value: f32, range: &'static str },
     #[error("view tilt of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
     ViewTiltParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
+    #[error("visibility gradient of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
+    GradientParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
     #[error("level 0 has a view tilt section; only coarse levels may (level 0 is seen through its own height field)")]
     ViewTiltAtLevel0,
     #[error("texel ({i}, {j}) of level {level} uses cluster {index}, but the table has {len}")]

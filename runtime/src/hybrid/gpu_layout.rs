@@ -91,7 +91,10 @@ pub struct GpuLevel {
     /// The flyaways' gain on the opacity exponent at polar 0°, 10°, … 80° (format 1.9;
     /// all 1 where the level has none: [`crate::hybrid::PathGain`]).
     pub fly_gain: [f32; crate::hybrid::PATH_GAIN_NODES],
-    pub pad: u32,
+    /// First word of this level's visibility gradient records (two words each, f16
+    /// pairs) in binding 13, after the view tilt records, or [`crate::hybrid::NO_NODE`]
+    /// where the level has none (format 1.12).
+    pub grad_base: u32,
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -149,6 +152,9 @@ pub struct GpuModel {
     pub fly_spread_words: Vec<u32>,
     pub transmissions: Vec<PackedTransmission>,
     pub view_tilts: Vec<PackedViewTilt>,
+    /// Every level's visibility gradient records as words (two each), uploaded after
+    /// `view_tilts` in binding 13 (format 1.12).
+    pub gradient_words: Vec<u32>,
 }
 
 impl GpuModel {
@@ -204,6 +210,7 @@ impl GpuModel {
             fly_spread_words: Vec::new(),
             transmissions: Vec::new(),
             view_tilts: Vec::new(),
+            gradient_words: Vec::new(),
         };
         for (k, l) in model.levels.iter().enumerate() {
             let gain = l.flyaways.as_ref().and_then(|f| f.path_gain).unwrap_or(crate::hybrid::PathGain::ONE);
@@ -264,7 +271,22 @@ impl GpuModel {
                 }
                 None => crate::hybrid::NO_NODE,
             };
+            // Made absolute once all view tilts are laid out (they come first in binding 13).
+            g.grad_base = match &l.gradient {
+                Some(r) => {
+                    out.gradient_words.extend_from_slice(bytemuck::cast_slice(r));
+                    (out.gradient_words.len() - 2 * r.len()) as u32
+                }
+                None => crate::hybrid::NO_NODE,
+            };
             out.header.levels[k] = g;
+        }
+        let tilt_words = 3 * out.view_tilts.len() as u64;
+        if tilt_words + out.gradient_words.len() as u64 >= u32::MAX as u64 {
+            return Err(ModelError::Meta("view tilt and visibility gradient records: more words than the GPU layout's 32-bit indices reach".into()));
+        }
+        for g in out.header.levels.iter_mut().take(model.levels.len()).filter(|g| g.grad_base != crate::hybrid::NO_NODE) {
+            g.grad_base += tilt_words as u32;
         }
         let node_words = 4 * out.fly_nodes.len() as u64;
         // The shaders index binding 6 by 32-bit word, NO_NODE excluded.
@@ -313,10 +335,16 @@ impl GpuModel {
         ("transmission records", bytes(&self.transmissions, 24))
     }
 
-    /// Binding 13: the view tilt records of every coarse level that has them (one zero
-    /// record when none).
+    /// Binding 13: the view tilt records of every coarse level that has them, then the
+    /// visibility gradient words of every level that has them (one zero record when
+    /// neither).
     pub fn view_tilt_array(&self) -> (&'static str, Vec<u8>) {
-        ("view tilt records", bytes(&self.view_tilts, 12))
+        let mut b = bytemuck::cast_slice(&self.view_tilts).to_vec();
+        b.extend_from_slice(bytemuck::cast_slice(&self.gradient_words));
+        if b.is_empty() {
+            b = vec![0; 12];
+        }
+        ("view tilt and visibility gradient records", b)
     }
 
     /// Total bytes uploaded.

@@ -20,7 +20,7 @@ use glam::Vec3;
 use super::error::{ModelError, TableKind};
 use super::packing::{f16_bits, f16_value, snorm8, snorm8_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
 use crate::brdf::visible_normal::ViewTilt;
-use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, ETA_MAX, OPENNESS_Q_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
+use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, ETA_MAX, GRADIENT_MAX, OPENNESS_Q_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
 /// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
 #[repr(C)]
@@ -165,6 +165,36 @@ impl PackedViewTilt {
     }
 }
 
+/// A texel's visibility gradient (format 1.12): g = (g_o,x, g_o,y, g_i,x, g_i,y) of
+/// [`crate::brdf::cloth_visibility_gradient`], f16 bits. 8 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedGradient {
+    pub g: [u16; 4],
+}
+
+impl PackedGradient {
+    /// Packs `g`, each coefficient clamped to ±[`GRADIENT_MAX`] (a non-finite one to 0).
+    pub fn new(g: [f32; 4]) -> PackedGradient {
+        PackedGradient { g: g.map(|v| f16_bits(if v.is_finite() { v.clamp(-GRADIENT_MAX, GRADIENT_MAX) } else { 0.0 })) }
+    }
+
+    pub fn decode(&self) -> [f32; 4] {
+        self.g.map(f16_value)
+    }
+
+    /// Checks one record (texel `texel` of level `level`): finite, within ±[`GRADIENT_MAX`].
+    pub fn validate(&self, level: usize, texel: usize) -> Result<(), ModelError> {
+        for (field, v) in ["g_o.x", "g_o.y", "g_i.x", "g_i.y"].into_iter().zip(self.decode()) {
+            if !(v.is_finite() && v.abs() <= GRADIENT_MAX) {
+                return Err(ModelError::GradientParam { level, texel, field, value: v, max: GRADIENT_MAX });
+            }
+        }
+        Ok(())
+    }
+}
+
+const _: () = assert!(core::mem::size_of::<PackedGradient>() == 8);
 const _: () = assert!(core::mem::size_of::<PackedViewTilt>() == 12);
 const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 24);
 const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
@@ -240,6 +270,9 @@ pub struct TexelBrdf {
     pub params: ClothParams,
     pub frames: [ClothFrame; MAX_LOBES],
     pub transmission: ClothTransmission,
+    /// The reflection's visibility gradient ([`crate::brdf::cloth_visibility_gradient`];
+    /// zero where the level has none).
+    pub gradient: [f32; 4],
     /// A flyaway fibre whose lobes follow the cylinder law
     /// ([`crate::brdf::cloth_cylinder_lobe`]; set by `cpu::shading::in_fiber_frame`).
     pub cylinder: bool,
@@ -284,7 +317,7 @@ impl BrdfTable {
         for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
             params.lobes[j] = lobe.lobe();
         }
-        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default(), cylinder: false }
+        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default(), gradient: [0.0; 4], cylinder: false }
     }
 
     /// Entry `index` with each lobe in its own frame (per-texel encoding).
@@ -296,7 +329,7 @@ impl BrdfTable {
             params.lobes[j] = lobe.lobe();
             frames[j] = lobe.frame();
         }
-        TexelBrdf { params, frames, transmission: ClothTransmission::default(), cylinder: false }
+        TexelBrdf { params, frames, transmission: ClothTransmission::default(), gradient: [0.0; 4], cylinder: false }
     }
 
     /// Checks every header and lobe: counts and ranges, finite parameters in range.

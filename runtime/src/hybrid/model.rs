@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::{ModelError, TableKind};
 use super::flyaway::Flyaways;
-use super::lobe::{BrdfTable, ClusteredTexel, PackedTransmission, PackedViewTilt, TexelBrdf};
+use super::lobe::{BrdfTable, ClusteredTexel, PackedGradient, PackedTransmission, PackedViewTilt, TexelBrdf};
 use super::packing::{unorm16, unorm16_value};
 use crate::brdf::BrdfReading;
 use crate::scene::Aabb;
@@ -157,6 +157,9 @@ pub struct Level {
     /// the viewer as its footprint's visible normals do (format 1.4,
     /// [`crate::brdf::visible_normal`]). `None`: the frames as stored (always at level 0).
     pub view_tilt: Option<Vec<PackedViewTilt>>,
+    /// The visibility gradient per texel (x fastest) of level 0 (format 1.12,
+    /// [`crate::brdf::cloth_visibility_gradient`]). `None`: 1 everywhere.
+    pub gradient: Option<Vec<PackedGradient>>,
 }
 
 impl Level {
@@ -173,6 +176,9 @@ impl Level {
         if let Some(t) = &self.transmission {
             b.transmission = t[index].decode();
         }
+        if let Some(g) = &self.gradient {
+            b.gradient = g[index].decode();
+        }
         b
     }
 
@@ -184,6 +190,11 @@ impl Level {
     /// Bytes of the view tilt records in the file (0 without).
     pub fn view_tilt_bytes(&self) -> u64 {
         self.view_tilt.as_ref().map_or(0, |t| super::compact::view_tilt_bytes(t))
+    }
+
+    /// Bytes of the visibility gradient records in the file (0 without).
+    pub fn gradient_bytes(&self) -> u64 {
+        self.gradient.as_ref().map_or(0, |g| (g.len() * size_of::<PackedGradient>()) as u64)
     }
 
     /// Bytes of the transmission records in the file (0 without).
@@ -350,6 +361,14 @@ impl HybridModel {
                     return Err(ModelError::Length { what: "transmission records", level, expected: texels, got: t.len() as u64 });
                 }
                 for (texel, r) in t.iter().enumerate() {
+                    r.validate(level, texel)?;
+                }
+            }
+            if let Some(g) = &l.gradient {
+                if g.len() as u64 != texels {
+                    return Err(ModelError::Length { what: "visibility gradient records", level, expected: texels, got: g.len() as u64 });
+                }
+                for (texel, r) in g.iter().enumerate() {
                     r.validate(level, texel)?;
                 }
             }

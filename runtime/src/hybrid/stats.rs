@@ -79,6 +79,10 @@ pub struct LevelStats {
     pub open_texels: Option<f64>,
     /// Bytes of the view tilt records (0: none, as at level 0).
     pub view_tilt_bytes: u64,
+    /// Bytes of the visibility gradient records (format 1.12; 0: none).
+    pub gradient_bytes: u64,
+    /// The median of |g| = |(g_o, g_i)| over the texels (None: no gradient).
+    pub gradient_median: Option<f32>,
     pub fit_error: Option<f32>,
     /// "WxH".
     pub resolution: String,
@@ -203,7 +207,13 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.open_texels = Some(t.iter().filter(|r| r.decode().gap.o > 0.0).count() as f64 / t.len().max(1) as f64);
         }
         st.view_tilt_bytes = level.view_tilt_bytes();
-        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes;
+        st.gradient_bytes = level.gradient_bytes();
+        st.gradient_median = level.gradient.as_ref().filter(|g| !g.is_empty()).map(|g| {
+            let mut m: Vec<f32> = g.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+            m.sort_by(f32::total_cmp);
+            m[m.len() / 2]
+        });
+        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes + st.gradient_bytes;
         levels.push(st);
     }
     let payload_bytes = height_bytes + levels.iter().map(|l| l.bytes).sum::<u64>();

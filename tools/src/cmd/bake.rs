@@ -185,6 +185,10 @@ pub struct BakeArgs {
     /// Ridge of the per-texel refinement towards the cluster's values (relative).
     #[arg(long, default_value_t = 0.05)]
     pub ridge: f64,
+    /// No visibility gradient per texel (format 1.12): the texel's response the same
+    /// from every side (the refinement of k_d and k_j alone).
+    #[arg(long)]
+    pub no_gradient: bool,
     /// Held-out views to measure after the bake (0 skips the check).
     #[arg(long, default_value_t = 8)]
     pub held_out: usize,
@@ -274,6 +278,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--ridge {}: must be a non-negative number", args.ridge);
     }
     options.per_texel_ridge = (!args.clustered).then_some(args.ridge);
+    if args.no_gradient || args.clustered {
+        options.gradient = None;
+    }
     if args.flyaway_clusters == 0 || args.flyaway_clusters > 256 {
         bail!("--flyaway-clusters {}: must be in 1..=256", args.flyaway_clusters);
     }
@@ -382,6 +389,15 @@ pub fn run(args: BakeArgs) -> Result<()> {
             100.0 * r.block_error,
             100.0 * r.cluster_error,
             100.0 * r.cluster_block_error
+        );
+    }
+    if let Some(g) = &r.gradient {
+        println!(
+            "visibility gradient: |g| median {:.2}, p90 {:.2}; training error without it {:.2}% per texel, {:.2}% over 4x4 blocks",
+            g.median,
+            g.p90,
+            100.0 * g.error_without,
+            100.0 * g.block_error_without
         );
     }
     println!("training error on grazing pairs (a polar angle > 55°) {:.1}%, on the others {:.1}%", 100.0 * r.error_grazing, 100.0 * r.error_non_grazing);

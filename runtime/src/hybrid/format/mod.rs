@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 11;
+pub const VERSION_MINOR: u16 = 12;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -105,10 +105,12 @@ pub enum SectionKind {
     ViewTilt = 49,
     /// Per coarse level, optional, instead of VIEW_TILT (1.7): compact view tilts, 6 bytes each.
     ViewTiltCompact = 50,
+    /// Per level, optional (1.12): the visibility gradient per texel (8 bytes each).
+    Gradient = 51,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 20] = [
+    pub const ALL: [SectionKind; 21] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -129,6 +131,7 @@ impl SectionKind {
         SectionKind::Transmission,
         SectionKind::ViewTilt,
         SectionKind::ViewTiltCompact,
+        SectionKind::Gradient,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -162,6 +165,7 @@ impl SectionKind {
             SectionKind::SurfaceTexelsCompact => "SURFACE_TEXELS_COMPACT",
             SectionKind::SurfaceLobesCompact => "SURFACE_LOBES_COMPACT",
             SectionKind::ViewTiltCompact => "VIEW_TILT_COMPACT",
+            SectionKind::Gradient => "GRADIENT",
         }
     }
 }

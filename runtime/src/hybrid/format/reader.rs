@@ -347,7 +347,11 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
             (None, None) => None,
             _ => Some(s.wide_or_compact(SectionKind::ViewTilt, SectionKind::ViewTiltCompact, l, compact::expand_view_tilts)?),
         };
-        levels.push(Level { width, height, surface, flyaways, transmission, view_tilt });
+        let gradient = match s.get(SectionKind::Gradient, l) {
+            Some(_) => Some(s.array(SectionKind::Gradient, l)?),
+            None => None,
+        };
+        levels.push(Level { width, height, surface, flyaways, transmission, view_tilt, gradient });
     }
     let (source_bbox, source_dims, seed, fit_error, note) = match s.get(SectionKind::Meta, 0) {
         Some((index, data)) => parse_meta_section(index, data, mh.levels)?,

@@ -105,6 +105,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
                 None => out.push((SectionKind::ViewTilt, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t)))),
             }
         }
+        // Optional: a 1.11 reader skips it and shades every texel as if g = 0.
+        if let Some(g) = &l.gradient {
+            out.push((SectionKind::Gradient, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(g))));
+        }
     }
     out
 }
