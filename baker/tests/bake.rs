@@ -49,6 +49,12 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     }
     // The training images' block error stays well below what a black model scores (1.0).
     assert!(r.block_error < 0.5, "training block error {}", r.block_error);
+    // Every level carries visibility gradients (format 1.12), and level 0's lower the
+    // training error the same refinement leaves without them.
+    let g = r.gradient.as_ref().expect("gradients by default");
+    eprintln!("gradient {g:?}");
+    assert!(b.model.levels.iter().all(|l| l.gradient.as_ref().is_some_and(|g| g.len() == (l.width * l.height) as usize)));
+    assert!(g.median > 0.0 && r.block_error < g.block_error_without && r.error < g.error_without, "{g:?} against {} / {}", r.error, r.block_error);
     // The default diffuse law (format 1.6), in the model and the report.
     assert_eq!(b.model.meta.diffuse, fabric_runtime::brdf::DiffuseLaw::LommelSeeliger);
     assert_eq!(r.diffuse, "lommel-seeliger");

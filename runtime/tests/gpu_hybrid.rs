@@ -743,6 +743,38 @@ fn view_tilts_match_the_cpu_twin_and_change_the_coarse_levels() {
     assert_no_validation_errors(&device);
 }
 
+/// Texels' visibility gradients (format 1.12, read after the view tilts in binding 13):
+/// both twins agree near and far, under lights and under the sky, and the gradients
+/// change the image.
+#[test]
+fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let mut plain = examples::synthetic_model(64, 5);
+    examples::add_view_tilts(&mut plain, 0.3, 4);
+    let mut graded = plain.clone();
+    examples::add_gradients(&mut graded, 5);
+    let lights = [Light::directional(Vec3::new(-0.4, 0.3, 0.7), Vec3::ONE), Light::Point { position: Vec3::new(0.5, 0.2, 0.9), intensity: Vec3::splat(1.2) }];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let centre = Vec3::new(0.5, 0.5, 0.0);
+    let near = Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 48, height: 40 };
+    let cases = [
+        Case { name: "graded near, level 0", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() } },
+        Case { name: "graded far 60°, auto", camera: Camera::orbit_orthographic(60.0, 30.0, centre, 40.0, 6.0, 32, 32), options: opts.clone() },
+        Case { name: "graded level 2, under the sky", camera: Camera::orbit_orthographic(50.0, 250.0, centre, 40.0, 3.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), env: Some(sky_light()), ..opts.clone() } },
+        Case { name: "graded near, under the sky", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), env: Some(sky_light()), ..opts.clone() } },
+    ];
+    for case in &cases {
+        let lights: &[Light] = if case.options.env.is_some() { &[] } else { &lights };
+        assert_twins_agree(case.name, &compare(&pass, &graded, lights, case));
+        let without = render(&plain, &case.camera, lights, &case.options).unwrap();
+        let with = render(&graded, &case.camera, lights, &case.options).unwrap();
+        let moved = relative_rmse(&with, &without).unwrap();
+        assert!(moved > 0.02, "{}: the gradients moved the image by only {moved}", case.name);
+    }
+    assert_no_validation_errors(&device);
+}
+
 #[test]
 fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
     let device = device();

@@ -473,13 +473,18 @@ impl TargetAcc {
 
 /// Ridge of a coarse texel's visibility gradient towards 0 (as the bake's).
 const GRADIENT_RIDGE: f64 = 0.05;
+/// Alternations of (g for fixed lobes, lobes for fixed g) per coarse texel. Three
+/// lowered a twill's level-1 fit error from 9.5% to 8.0% but moved no far view and the
+/// distance sweep by ≤ 0.15 points, at 1.7× the level's fitting time.
+const GRADIENT_ROUNDS: usize = 1;
 
 /// A coarse texel's fit where level 0 has visibility gradients (format 1.12): the
 /// footprint's mean response carries its texels' odd part in the slant of ω_i and ω_o,
 /// which lobes cannot hold (measured: the chain's fit error at level 1 of a twill 5.5%
 /// without level-0 gradients, 14.4% with them and none here). From `first` (the fit to
 /// the plain target), g by least squares (`fit::gradient`), then the lobes refitted to
-/// the target divided by M(g); kept if the product is closer to the target than `first`.
+/// the target divided by M(g) ([`GRADIENT_ROUNDS`] times); kept if the product is
+/// closer to the target than `first`.
 /// The fit's error is then the relative RMS of R·M against the target over all pairs.
 fn graded_fit(fp: &Footprint, pairs: &[Pair], s: &FitSettings, first: CoarseFit) -> (CoarseFit, [f32; 4]) {
     let predicted = |f: &CoarseFit| -> Vec<Vec3> {
@@ -498,11 +503,19 @@ fn graded_fit(fp: &Footprint, pairs: &[Pair], s: &FitSettings, first: CoarseFit)
     };
     let r0 = predicted(&first);
     let e0 = error(&r0, [0.0; 4]);
-    let g = gradient_least_squares(r0.iter().zip(fp.target).zip(pairs).map(|((r, t), &(wi, wo))| (*r, *t, wi, wo)), GRADIENT_RIDGE);
-    let even: Vec<Vec3> = fp.target.iter().zip(pairs).map(|(t, &(wi, wo))| *t / cloth_visibility_gradient(g, wi, wo).max(0.05)).collect();
-    let second = fit_footprint(&Footprint { target: &even, ..*fp }, pairs, s);
-    let e1 = error(&predicted(&second), g);
-    if e1 < e0 { (CoarseFit { error: e1, ..second }, g) } else { (CoarseFit { error: e0, ..first }, [0.0; 4]) }
+    let mut best = (CoarseFit { error: e0, ..first }, [0.0; 4]);
+    let mut r = r0;
+    for _ in 0..GRADIENT_ROUNDS {
+        let g = gradient_least_squares(r.iter().zip(fp.target).zip(pairs).map(|((r, t), &(wi, wo))| (*r, *t, wi, wo)), GRADIENT_RIDGE);
+        let even: Vec<Vec3> = fp.target.iter().zip(pairs).map(|(t, &(wi, wo))| *t / cloth_visibility_gradient(g, wi, wo).max(0.05)).collect();
+        let next = fit_footprint(&Footprint { target: &even, ..*fp }, pairs, s);
+        r = predicted(&next);
+        let e = error(&r, g);
+        if e < best.0.error {
+            best = (CoarseFit { error: e, ..next }, g);
+        }
+    }
+    best
 }
 
 /// Adds level-0 texel (i, j) to `acc`: its response at each pair, weighted by its

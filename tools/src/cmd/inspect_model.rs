@@ -81,6 +81,9 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
                 let _ = writeln!(s, "    openness straight down (the gaps between yarns): {} over texels, {:.1}% of texels open", range(o), 100.0 * f);
             }
         }
+        if let Some(m) = l.gradient_median {
+            let _ = writeln!(s, "    visibility gradient per texel (format 1.12): |g| median {m:.2}; {}", mib(l.gradient_bytes));
+        }
         if l.flyaway_nodes > 0 || l.flyaway_bytes > 0 {
             let _ = writeln!(s, "    flyaways: {} voxels in {} columns, longest list {}, alpha {}; {}", l.flyaway_nodes, l.flyaway_columns, l.flyaway_longest_list, range(&l.flyaway_alpha), mib(l.flyaway_bytes));
         }
