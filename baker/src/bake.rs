@@ -31,7 +31,7 @@ use serde::Serialize;
 
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
-use crate::fit::gradient::{GradientOptions, refine_texel_with_gradient, with_gradient};
+use crate::fit::gradient::{GradientOptions, refine_gradient_from, with_gradient};
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, unit_albedos};
 use crate::fit::features::texel_features;
@@ -746,11 +746,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                     let texel_samples = by_texel.group(j).iter().map(|&i| &samples[i as usize]);
                     let t: Vec<LobeTarget> = texel_samples.clone().map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
                     let c = clusters[j] as usize;
-                    let plain = cap_lobes(&refine_texel(&t, &params[c], ridge, options.fit.reading), &unit[c]);
+                    let first = refine_texel(&t, &params[c], ridge, options.fit.reading);
+                    let plain = cap_lobes(&first, &unit[c]);
                     match &options.gradient {
                         Some(go) => {
                             let pairs: Vec<(Vec3, Vec3)> = texel_samples.map(|s| dirs[s.dirs as usize]).collect();
-                            let (p, g) = refine_texel_with_gradient(&t, &pairs, &params[c], ridge, go, options.fit.reading);
+                            let (p, g) = refine_gradient_from(first, &t, &pairs, &params[c], ridge, go, options.fit.reading);
                             let (p, albedo) = cap_lobes(&p, &unit[c]);
                             (p, albedo, g, Some(plain.0))
                         }

@@ -122,7 +122,14 @@ fn solve4(a: [[f64; 4]; 4], b: [f64; 4]) -> Option<[f64; 4]> {
 /// docs): `samples` with their pairs `dirs` (tile space), the non-linear parameters
 /// kept from `cluster`, `ridge` as `refine_texel`'s. Returns the BRDF and g.
 pub fn refine_texel_with_gradient(samples: &[LobeTarget], dirs: &[(Vec3, Vec3)], cluster: &ClothParams, ridge: f64, o: &GradientOptions, reading: BrdfReading) -> (ClothParams, [f32; 4]) {
-    let mut p = refine_texel(samples, cluster, ridge, reading);
+    let plain = refine_texel(samples, cluster, ridge, reading);
+    refine_gradient_from(plain, samples, dirs, cluster, ridge, o, reading)
+}
+
+/// [`refine_texel_with_gradient`] from `plain`, the texel's refinement without a
+/// gradient (`refine_texel` on the same samples), which the caller already has.
+pub fn refine_gradient_from(plain: ClothParams, samples: &[LobeTarget], dirs: &[(Vec3, Vec3)], cluster: &ClothParams, ridge: f64, o: &GradientOptions, reading: BrdfReading) -> (ClothParams, [f32; 4]) {
+    let mut p = plain;
     let mut g = [0.0f32; 4];
     if samples.is_empty() {
         return (p, g);
