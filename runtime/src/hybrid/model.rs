@@ -157,8 +157,8 @@ pub struct Level {
     /// the viewer as its footprint's visible normals do (format 1.4,
     /// [`crate::brdf::visible_normal`]). `None`: the frames as stored (always at level 0).
     pub view_tilt: Option<Vec<PackedViewTilt>>,
-    /// The visibility gradient per texel (x fastest) of level 0 (format 1.12,
-    /// [`crate::brdf::cloth_visibility_gradient`]). `None`: 1 everywhere.
+    /// The visibility gradient per texel (x fastest), at any level (format 1.12,
+    /// [`crate::brdf::cloth_visibility_gradient`]). `None`: M = 1 everywhere.
     pub gradient: Option<Vec<PackedGradient>>,
 }
 
