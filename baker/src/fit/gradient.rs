@@ -90,32 +90,12 @@ pub fn gradient_least_squares(rows: impl Iterator<Item = (Vec3, Vec3, Vec3, Vec3
     x.map(|v| if v.is_finite() { (v as f32).clamp(-GRADIENT_MAX, GRADIENT_MAX) } else { 0.0 })
 }
 
-/// Solves the symmetric positive-definite 4×4 system a x = b (Cholesky); `None` if it is
-/// not positive definite.
+/// Solves the 4×4 system a x = b (symmetric, positive definite with the ridge);
+/// `None` where it is singular.
 fn solve4(a: [[f64; 4]; 4], b: [f64; 4]) -> Option<[f64; 4]> {
-    let mut l = [[0f64; 4]; 4];
-    for i in 0..4 {
-        for j in 0..=i {
-            let s: f64 = a[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if !(s > 0.0) {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    let mut y = [0f64; 4];
-    for i in 0..4 {
-        y[i] = (b[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
-    }
-    let mut x = [0f64; 4];
-    for i in (0..4).rev() {
-        x[i] = (y[i] - (i + 1..4).map(|k| l[k][i] * x[k]).sum::<f64>()) / l[i][i];
-    }
-    Some(x)
+    let m = glam::DMat4::from_cols_array_2d(&a);
+    let det = m.determinant();
+    (det.is_finite() && det > 0.0).then(|| (m.inverse() * glam::DVec4::from_array(b)).to_array())
 }
 
 /// Refines one texel's linear parameters together with its visibility gradient (module
