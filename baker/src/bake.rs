@@ -136,6 +136,10 @@ pub struct FlyawayOptions {
     /// How the flyaways' lobes fall with the azimuth about the fibre (format 1.11's
     /// cylinder law, or the frame facing the viewer of the files before).
     pub lobes: FiberLobes,
+    /// The flyaways shadow the surface's lights (format 1.13, MODEL flag bit 5;
+    /// `BakeMetadata::flyaway_shadow`): the fit and the renderers light a surface hit
+    /// through the flyaways in front of it, as the volume does.
+    pub shadow_surface: bool,
 }
 
 impl Default for FlyawayOptions {
@@ -148,7 +152,7 @@ impl Default for FlyawayOptions {
         // 20–27%), felt 22.6 → 21.2%, twill 14.6 → 14.2%; far views at 70° 5.5–10.9% →
         // 3.5–4.9% (baker/FIT_MEASUREMENTS.md and PREFILTER_MEASUREMENTS.md, "The
         // flyaways' lobes as cylinders").
-        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder }
+        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder, shadow_surface: true }
     }
 }
 
@@ -562,6 +566,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         coarse_visibility: false,
         diffuse: options.fit.diffuse,
         fiber_lobes: options.flyaways.as_ref().map_or(FiberLobes::Facing, |f| f.lobes),
+        flyaway_shadow: options.flyaways.as_ref().is_some_and(|f| f.shadow_surface),
         fit_error: vec![fit_error],
         source_bbox: bbox,
         source_dims: [nx as u32, ny as u32, nz as u32],

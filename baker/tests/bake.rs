@@ -35,6 +35,8 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(f.voxels > 0 && f.pixels > 0 && f.problem.is_none(), "{f:?}");
     assert!(f.error_fitted < f.error_without, "{f:?}");
     assert!(b.model.has_flyaways());
+    // And they shadow the surface's lights (format 1.13), in the fit and in the file.
+    assert!(b.model.meta.flyaway_shadow, "flyaways shadow the surface by default");
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
     // The peak memory after each stage (Linux reports it): one per timed stage, in bytes
     // (a process that rendered training images holds well over a MiB; a reading left in

@@ -649,3 +649,58 @@ fn the_split_filters_change_only_the_flyaways_of_views_with_a_flyaway_grid() {
     assert_eq!(split_sky.pixels, shaded_sky.pixels, "the environment's SG part is spread alike");
     assert!(under(CoarseFilter::Split, &lights).pixels != under(CoarseFilter::SplitShaded, &lights).pixels);
 }
+
+/// Format 1.13's flyaway shadow: a surface hit's light passes through the flyaways
+/// between it and the top plane, (1 − α)^(ℓ/s) per voxel over the path ℓ toward the
+/// light, the environment's straight up; the flyaways' own light and everything else are
+/// unchanged, and without the model's flag, shadows, or for a light below, nothing is.
+#[test]
+fn flyaways_shadow_the_surface_by_their_transmittance_toward_the_light() {
+    use fabric_runtime::scene::{Ray, direction_from_angles};
+    // 8² texels of 1/8 over a flat surface at depth 0.2 (z = 0.1); every column holds a
+    // voxel of α = 0.5 at depth index 2, [0.02, 0.03] below the top plane (z 0.27–0.28).
+    let params = ClothParams::new(Vec3::new(0.5, 0.4, 0.3), 1.5, 0.0, &[ClothLobe { k: Vec3::splat(0.3), beta: 0.3, gamma: ClothLobe::GAMMA_OFF }]);
+    let plain = examples::uniform_model(8, 8, 1, tile(), |_, _| 0.2, &params, Vec3::Z, Vec3::X).unwrap();
+    let voxels: Vec<_> = (0..64u32).map(|k| (k % 8, k / 8, FlyawayInput { depth: 2, alpha: 0.5, tangent: Vec3::X, param: 0 })).collect();
+    let mut off = plain.clone();
+    examples::add_flyaways(&mut off, 0, &voxels, &params).unwrap();
+    let mut on = off.clone();
+    on.meta.flyaway_shadow = true;
+    let alpha = on.levels[0].flyaways.as_ref().unwrap().nodes[0].alpha();
+    let edge = (0.125f32 * 0.125 * 0.01).cbrt();
+    let p = Vec3::new(0.06, -0.13, 0.1);
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    for theta in [0.0f32, 35.0, 62.0] {
+        let wi = direction_from_angles(theta, 40.0);
+        let lights = [Light::directional(wi, Vec3::ONE)];
+        let scene = Scene::for_rays(&on, &lights, opts.clone()).unwrap();
+        let want = (1.0 - alpha).powf(0.01 / wi.z / edge);
+        let (got, limited) = scene.flyaway_shadow(0, p, wi, f32::INFINITY);
+        assert!((got - want).abs() < 1e-4 && !limited, "θ = {theta}: transmittance toward the light {got} vs {want}");
+        // The probe (what the bake fits with) sees the same.
+        let down = Ray::new(Vec3::new(p.x, p.y, 1.0), -Vec3::Z);
+        let hit = scene.probe_ray(&down, 0, true).surface.unwrap();
+        assert!((hit.visibility - want).abs() < 1e-4, "θ = {theta}: probe visibility {}", hit.visibility);
+        assert_eq!(scene.probe_ray(&down, 0, false).surface.unwrap().visibility, 1.0, "a probe without flyaways");
+        // In the image: only the surface's light changes, by that factor, behind what the
+        // view's flyaways let through. A ray down a column: flyaways' radiance + T·surface.
+        let (a, b, bare) = (scene.trace_ray(&down, 0), Scene::for_rays(&off, &lights, opts.clone()).unwrap().trace_ray(&down, 0), Scene::for_rays(&plain, &lights, opts.clone()).unwrap().trace_ray(&down, 0));
+        let t_view = 1.0 - b.flyaway_opacity;
+        assert!(t_view > 0.1 && t_view < 0.95, "the view crosses the voxel: {t_view}");
+        let delta = (a.radiance - b.radiance) - t_view * (want - 1.0) * bare.radiance;
+        assert!(delta.abs().max_element() < 1e-5, "θ = {theta}: {} vs {} ({delta})", a.radiance, b.radiance);
+        // Without the flag, without flyaways rendered, or for a light below: nothing. Without
+        // the height field's shadow rays (the bake's default), the same shadow.
+        assert_eq!(Scene::for_rays(&off, &lights, opts.clone()).unwrap().flyaway_shadow(0, p, wi, f32::INFINITY).0, 1.0);
+        assert_eq!(Scene::for_rays(&on, &lights, CpuRenderOptions { flyaways: false, ..opts.clone() }).unwrap().flyaway_shadow(0, p, wi, f32::INFINITY).0, 1.0);
+        assert_eq!(scene.flyaway_shadow(0, p, -wi, f32::INFINITY).0, 1.0);
+        assert_eq!(Scene::for_rays(&on, &lights, CpuRenderOptions { shadows: ShadowMode::Off, ..opts.clone() }).unwrap().flyaway_shadow(0, p, wi, f32::INFINITY), (got, limited));
+    }
+    // A point light within the layer's reach: the path stops at the light (below the voxel).
+    let scene = Scene::for_rays(&on, &[], opts.clone()).unwrap();
+    assert_eq!(scene.flyaway_shadow(0, p, Vec3::Z, 0.1).0, 1.0, "a light below the voxel");
+    // The environment's: straight up.
+    let sky = scene.flyaway_sky(0, p);
+    assert!((sky - (1.0 - alpha).powf(0.01 / edge)).abs() < 1e-4, "sky {sky}");
+    assert_eq!(Scene::for_rays(&off, &[], opts).unwrap().flyaway_sky(0, p), 1.0);
+}

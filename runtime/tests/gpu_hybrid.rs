@@ -775,6 +775,42 @@ fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
     assert_no_validation_errors(&device);
 }
 
+/// Format 1.13's flyaway shadow (`Scene::flyaway_shadow`, `flyaway_sky`): the twins agree
+/// near and far, at a coarse level with its own flyaways, under a low light and under
+/// the sky, and the shadow darkens the surface, never brightens a pixel.
+#[test]
+fn flyaway_shadows_match_the_cpu_twin_and_only_darken() {
+    let device = device();
+    let pass = HybridPass::new(&device).unwrap();
+    let plain = examples::synthetic_model(64, 5);
+    assert!(plain.levels[0].flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty()) && plain.levels[2].flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty()), "flyaways at levels 0 and 2");
+    let mut shadowed = plain.clone();
+    shadowed.meta.flyaway_shadow = true;
+    let lights = [Light::directional(Vec3::new(-0.4, 0.3, 0.7), Vec3::ONE), Light::Point { position: Vec3::new(0.5, 0.2, 0.9), intensity: Vec3::splat(1.2) }];
+    let low = [Light::directional(fabric_runtime::scene::direction_from_angles(75.0, 120.0), Vec3::ONE)];
+    let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
+    let centre = Vec3::new(0.5, 0.5, 0.0);
+    let near = Camera { origin: Vec3::new(0.6, -0.2, 0.8), target: centre, up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 40.0 }, width: 48, height: 40 };
+    let cases = [
+        (Case { name: "flyaway shadow near, level 0", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() } }, &lights[..]),
+        (Case { name: "flyaway shadow near, level 0, light at 75°", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() } }, &low[..]),
+        (Case { name: "flyaway shadow far 60°, auto, no shadow rays", camera: Camera::orbit_orthographic(60.0, 30.0, centre, 40.0, 6.0, 32, 32), options: CpuRenderOptions { shadows: ShadowMode::Off, ..opts.clone() } }, &lights[..]),
+        (Case { name: "flyaway shadow level 2", camera: Camera::orbit_orthographic(50.0, 250.0, centre, 40.0, 3.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), ..opts.clone() } }, &lights[..]),
+        (Case { name: "flyaway shadow near, under the sky", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), env: Some(sky_light()), ..opts.clone() } }, &[][..]),
+    ];
+    for (case, lights) in &cases {
+        assert_twins_agree(case.name, &compare(&pass, &shadowed, lights, case));
+        let without = render(&plain, &case.camera, lights, &case.options).unwrap();
+        let with = render(&shadowed, &case.camera, lights, &case.options).unwrap();
+        let moved = relative_rmse(&with, &without).unwrap();
+        println!("{}: the flyaway shadow moved the image by {moved:.4}", case.name);
+        assert!(moved > 1e-3, "{}: the flyaway shadow moved the image by only {moved}", case.name);
+        let brighter = with.pixels.iter().zip(&without.pixels).filter(|(a, b)| (**a - **b).max_element() > 1e-6 * b.max_element().max(1.0)).count();
+        assert_eq!(brighter, 0, "{}: {brighter} pixels brighter with the flyaway shadow", case.name);
+    }
+    assert_no_validation_errors(&device);
+}
+
 #[test]
 fn flyaway_spreads_match_the_cpu_twin_and_change_the_coarse_levels() {
     let device = device();

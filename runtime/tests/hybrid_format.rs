@@ -718,7 +718,7 @@ fn long_randomized_corruption() {
 }
 
 #[test]
-fn model_flag_bits_3_and_4_are_the_diffuse_and_flyaway_laws_and_unknown_bits_are_rejected() {
+fn model_flag_bits_3_to_5_are_the_diffuse_and_flyaway_laws_and_the_flyaway_shadow_and_unknown_bits_are_rejected() {
     let mut parts = Parts::of(&sample_bytes());
     let flags = |p: &mut Parts| u32::from_le_bytes(p.find(SectionKind::Model, 0)[16..20].try_into().unwrap());
     let set = |p: &mut Parts, f: u32| p.find(SectionKind::Model, 0)[16..20].copy_from_slice(&f.to_le_bytes());
@@ -734,7 +734,15 @@ fn model_flag_bits_3_and_4_are_the_diffuse_and_flyaway_laws_and_unknown_bits_are
     let mut m = sample();
     m.meta.fiber_lobes = fabric_runtime::brdf::FiberLobes::Cylinder;
     assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap().meta.fiber_lobes, fabric_runtime::brdf::FiberLobes::Cylinder);
-    for bit in [32u32, 1 << 31] {
+    // Bit 5 (1.13): the flyaways shadow the surface.
+    assert_eq!(base & 32, 0, "the sample's flyaways do not shadow its surface");
+    assert!(!format::read(&parts.assemble()).unwrap().meta.flyaway_shadow);
+    set(&mut parts, base | 32);
+    assert!(format::read(&parts.assemble()).unwrap().meta.flyaway_shadow);
+    m.meta.flyaway_shadow = true;
+    let back = format::read(&format::to_bytes(&m).unwrap()).unwrap();
+    assert!(back.meta.flyaway_shadow && back.meta.fiber_lobes == fabric_runtime::brdf::FiberLobes::Cylinder);
+    for bit in [64u32, 1 << 31] {
         set(&mut parts, base | bit);
         let err = format::read(&parts.assemble()).unwrap_err().to_string();
         assert!(err.contains("MODEL") && err.contains("unknown flags"), "{err}");
@@ -756,6 +764,10 @@ fn fuzz_seeds_are_current() {
     }), ("cylinder.hyb", {
         let mut m = sample();
         m.meta.fiber_lobes = fabric_runtime::brdf::FiberLobes::Cylinder;
+        m
+    }), ("flyaway_shadow.hyb", {
+        let mut m = sample();
+        m.meta.flyaway_shadow = true;
         m
     })] {
         let bytes = format::to_bytes(&model).unwrap();

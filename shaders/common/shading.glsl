@@ -178,10 +178,29 @@ float visibility(vec3 p, vec3 wi, float dist, inout uint limited) {
     return blocked ? 0.0 : 1.0;
 }
 
+// What the flyaways in front of a surface hit let through toward a light, and of the
+// environment (format 1.13): defined with the flyaways' march in trace.glsl.
+float flyaway_shadow(uint level, vec3 p, vec3 wi, float dist, inout uint limited);
+float flyaway_sky(uint level, vec3 p);
+
 // The light factor of a hit: shadow ray where `shadowed`, the volumetric factor where
 // `volumetric`.
 float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
     float v = shadowed ? visibility(p, wi, dist, limited) : 1.0;
+    return volumetric ? v * volume_factor(wi, wo) : v;
+}
+
+// The light factor of a surface hit of `level`: light_factor's, the flyaways' shadow
+// (flyaway_shadow) after the height field's where that lets the light through. Twin: the
+// `visible` closure of Scene::shade_surface.
+float surface_light_factor(uint level, vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
+    float v = 1.0;
+    if (shadowed) {
+        v = visibility(p, wi, dist, limited);
+        if (v > 0.0) {
+            v *= flyaway_shadow(level, p, wi, dist, limited);
+        }
+    }
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
 
@@ -385,14 +404,16 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], flo
         if (max3(response) <= 0.0) {
             continue;
         }
-        radiance += irradiance * response * light_factor(p, wi, dist, wo, shadowed, volumetric, limited);
+        radiance += irradiance * response * surface_light_factor(level, p, wi, dist, wo, shadowed, volumetric, limited);
     }
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
+        // What the flyaways let through of the map (format 1.13; Scene::shade_surface).
+        float sky = shadowed ? flyaway_sky(level, p) : 1.0;
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
-            radiance += w * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS);
+            radiance += w * (sky * texel_env_response(r, e, true, wo, reading, volumetric, diffuse, ENV_NODES, ENV_LOOKUPS));
             // The map below the sheet through the cloth (Scene::env_through): TRANSMISSION
             // is on only where the map has light below (PrefilteredEnv::lights_below).
             if (TRANSMISSION && params.env_info.z != 0u) {

@@ -54,6 +54,40 @@ FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint
     return march_flyaways(level, o, d, t_top, t_end, params.max_flyaway_columns, light, shadow_limited);
 }
 
+// What the flyaways of `level` let through from surface point p toward a light in
+// direction wi at `dist`: the path to the top plane (or to the light, if nearer), marched
+// down from its upper end, unshaded; 1 unless the model's flyaways shadow the surface
+// (GPU_FLAG_FLYAWAY_SHADOW), or for a light below the sheet; with or without the height
+// field's shadow rays (SHADOWS). Counts a
+// march that ran out of columns in `limited`. Twin: Scene::flyaway_shadow
+// (runtime/src/cpu/render.rs).
+float flyaway_shadow(uint level, vec3 p, vec3 wi, float dist, inout uint limited) {
+    if (!HAS_FLYAWAYS || (model.flags & GPU_FLAG_FLYAWAY_SHADOW) == 0u || !(wi.z > 0.0)) {
+        return 1.0;
+    }
+    float s = min((model.top_z - p.z) / wi.z, dist);
+    if (!(s > 0.0) || isinf(s)) {
+        return 1.0;
+    }
+    precise vec3 o = p + wi * s;
+    uint unused = 0u;
+    FlyawayMarch m = march_level_flyaways(o, -wi, 0.0, s, level, FLY_LIGHT_NONE, unused);
+    limited += m.limited ? 1u : 0u;
+    return m.transmittance;
+}
+
+// What the flyaways of `level` let through of the environment at surface point p: their
+// transmittance straight up, one column (1 where flyaway_shadow is). Twin:
+// Scene::flyaway_sky.
+float flyaway_sky(uint level, vec3 p) {
+    float s = model.top_z - p.z;
+    if (!HAS_FLYAWAYS || (model.flags & GPU_FLAG_FLYAWAY_SHADOW) == 0u || !(s > 0.0) || isinf(s) || model.levels[level].fly_nodes == 0u) {
+        return 1.0;
+    }
+    uint unused = 0u;
+    return march_flyaways(level, vec3(p.xy, model.top_z), vec3(0.0, 0.0, -1.0), 0.0, s, params.max_flyaway_columns, FLY_LIGHT_NONE, unused).transmittance;
+}
+
 // The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
 // Where the lookup at `offset` (world x-y) of a box grid reads the surface: where a ray
 // parallel to the pixel's, started `offset` beside it, meets the height field; the point

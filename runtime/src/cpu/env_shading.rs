@@ -49,6 +49,9 @@
 //! the whole hemisphere of each lobe's normal, cut to the upper hemisphere of the tile
 //! (ω_i.z > 0: the reflection lobes see only the map above the sheet). What that leaves
 //! out is measured against the path tracer (`fabric bench`, runtime/GPU_MEASUREMENTS.md).
+//! Where the model's flyaways shadow the surface (format 1.13), a surface hit's map is
+//! dimmed by what they let through straight up from it (`Scene::flyaway_sky`): the
+//! column above the hit stands for the whole sky, whose lower light crosses longer paths.
 //!
 //! # Light through the cloth ([`transmission_env_response`])
 //! A texel with a transmission term (a BSDF, brdf/mod.rs `cloth_transmission`) is also

@@ -31,7 +31,9 @@ pub struct SurfaceHit {
     pub texel: (u32, u32),
     /// World hit point.
     pub point: Vec3,
-    /// Visibility of the scene's first light from the hit (1 without shadowing).
+    /// Visibility of the scene's first light from the hit (1 without shadowing): the
+    /// height field's, times what the flyaways let through toward it where they shadow
+    /// the surface (`Scene::flyaway_shadow`).
     pub visibility: f32,
     /// Transmittance of the flyaways in front of the hit (1 when none were crossed or
     /// they were not marched).
@@ -62,7 +64,7 @@ pub struct ProbeTrace {
 
 impl Scene<'_> {
     /// Traces `ray` through level `level` of the model: the surface hit and, with
-    /// `flyaways`, the flyaway nodes in front of it, each with the visibility of the
+    /// `flyaways`, the flyaway nodes in front of it (and their shadow on it), each with the visibility of the
     /// scene's first light (or 1 with no light). The same march as [`Scene::trace_ray`].
     pub fn probe_ray(&self, ray: &Ray, level: usize, flyaways: bool) -> ProbeTrace {
         let mut out = ProbeTrace::default();
@@ -87,7 +89,15 @@ impl Scene<'_> {
         }
         if let HfTrace::Hit(t) = hit {
             let point = ray.at(t);
-            out.surface = Some(SurfaceHit { texel: self.texel_at(point, level), point, visibility: visibility(point, &mut limited), transmittance });
+            let v = visibility(point, &mut limited);
+            let fly = match self.lights.first() {
+                Some(l) if v > 0.0 && flyaways => {
+                    let s = l.sample(point);
+                    self.flyaway_shadow(level, point, s.wi, s.distance).0
+                }
+                _ => 1.0,
+            };
+            out.surface = Some(SurfaceHit { texel: self.texel_at(point, level), point, visibility: v * fly, transmittance });
         }
         out
     }

@@ -403,6 +403,55 @@ impl<'a> Scene<'a> {
         if blocked { 0.0 } else { 1.0 }
     }
 
+    /// What the flyaways of `level` let through from the surface point `p` toward a light
+    /// in direction `wi` at `distance`: the path from `p` to the top plane (or to the
+    /// light, if nearer), marched down from its upper end as a camera ray is (the coarser
+    /// level of [`Scene::grazing_level`] past its column budget); with whether the march
+    /// ran out of columns. 1 unless the model's flyaways shadow the surface
+    /// (`BakeMetadata::flyaway_shadow`, format 1.13) and flyaways are rendered, or for a
+    /// light below the sheet. The height field's shadow rays are another matter: the
+    /// bake fits without them by default, and the flyaways' shadow holds either way. Only the surface is shadowed so: a flyaway's own
+    /// lights see the height field alone, since the flyaways shadowing each other too
+    /// darkened felt to 0.80–0.97 of the truth's mean (baker/FIT_MEASUREMENTS.md, "The
+    /// flyaways' shadow on the surface"). Twin: `flyaway_shadow` in
+    /// shaders/common/trace.glsl.
+    pub fn flyaway_shadow(&self, level: usize, p: Vec3, wi: Vec3, distance: f32) -> (f32, bool) {
+        if !self.options.flyaways || !self.model.meta.flyaway_shadow || !(wi.z > 0.0) {
+            return (1.0, false);
+        }
+        let s = ((self.model.tile.top_z - p.z) / wi.z).min(distance);
+        if !(s > 0.0 && s.is_finite()) {
+            return (1.0, false);
+        }
+        let ray = Ray::new(p + wi * s, -wi);
+        let level = self.grazing_level(&ray, 0.0, s, level);
+        match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+            Some(f) => {
+                let m = visit_flyaways(f, &self.grids[level], &ray, 0.0, s, self.options.max_flyaway_columns, |_, _, _, _| {});
+                (m.transmittance, m.limited)
+            }
+            None => (1.0, false),
+        }
+    }
+
+    /// What the flyaways of `level` let through of the environment at surface point `p`:
+    /// their transmittance straight up, one column (1 where [`Scene::flyaway_shadow`] is).
+    /// An approximation: the map's light comes from the whole sky, through longer paths
+    /// the lower it comes, and the column above `p` stands for all of them
+    /// (env_shading.rs states the approximations). Twin: `flyaway_sky` in
+    /// shaders/common/trace.glsl.
+    pub fn flyaway_sky(&self, level: usize, p: Vec3) -> f32 {
+        let s = self.model.tile.top_z - p.z;
+        if !self.options.flyaways || !self.model.meta.flyaway_shadow || !(s > 0.0 && s.is_finite()) {
+            return 1.0;
+        }
+        let ray = Ray::new(Vec3::new(p.x, p.y, self.model.tile.top_z), Vec3::NEG_Z);
+        match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
+            Some(f) => visit_flyaways(f, &self.grids[level], &ray, 0.0, s, self.options.max_flyaway_columns, |_, _, _, _| {}).transmittance,
+            None => 1.0,
+        }
+    }
+
     /// Traces one ray at `level`.
     pub fn trace_ray(&self, ray: &Ray, level: usize) -> PixelTrace {
         self.trace_mixed(ray, &|_| LevelMix::single(level))
@@ -748,17 +797,26 @@ impl<'a> Scene<'a> {
         let volumetric = self.model.meta.volumetric;
         // Coarse levels of a prefiltered model carry the light's visibility.
         let shadowed = level == 0 || !self.model.meta.coarse_visibility;
+        // The height field's shadow, then the flyaways' in front of the hit (format 1.13).
         let visible = |p: Vec3, s: &LightSample| {
-            let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
+            let v = if shadowed {
+                let v = self.visibility(p, s, &mut shadow_limited);
+                let (fly, limited) = if v > 0.0 { self.flyaway_shadow(level, p, s.wi, s.distance) } else { (1.0, false) };
+                shadow_limited += limited as u32;
+                v * fly
+            } else {
+                1.0
+            };
             if volumetric { v * volume_factor(s.wi, wo) } else { v }
         };
+        let sky = if shadowed && self.options.env.is_some() { self.flyaway_sky(level, p) } else { 1.0 };
         // The edit at the hit (the same for all its texels).
         let edit = self.edited.then(|| self.edit_at(p));
         let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));
         if level == 0 && points.is_empty() {
             let (i, j) = self.texel_at(p, 0);
             let b = edited(l.texel_brdf(i, j));
-            let radiance = shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(&b, wo);
+            let radiance = shade(&b, p, wo, self.lights, self.reading, self.diffuse, visible) + sky * self.env_response(&b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(&b, wo);
             return (radiance, shadow_limited);
         }
         // The texels read and their weights, in the GPU twin's order (surface_corner).
@@ -793,7 +851,7 @@ impl<'a> Scene<'a> {
         let texels: Vec<(TexelBrdf, f32)> = distinct_corners(&corners).into_iter().map(|((i, j), w)| (texel(i, j), w)).collect();
         let mut radiance = shade_blend(&texels, p, wo, self.lights, self.reading, self.diffuse, visible);
         if self.options.env.is_some() {
-            radiance += texels.iter().map(|(b, w)| *w * (self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(b, wo))).sum::<Vec3>();
+            radiance += texels.iter().map(|(b, w)| *w * (sky * self.env_response(b, wo, volumetric, self.diffuse, EnvBudget::SURFACE) + self.env_through(b, wo))).sum::<Vec3>();
         }
         (radiance, shadow_limited)
     }

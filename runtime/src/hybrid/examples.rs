@@ -31,6 +31,7 @@ pub fn example_meta(tile: &Tile, levels: usize, dims: [u32; 3]) -> BakeMetadata 
         coarse_visibility: false,
         diffuse: crate::brdf::DiffuseLaw::Lambert,
         fiber_lobes: crate::brdf::FiberLobes::Facing,
+        flyaway_shadow: false,
         fit_error: vec![-1.0; levels],
         source_bbox: Aabb::new(min, max),
         source_dims: dims,

@@ -48,6 +48,9 @@ pub const GPU_FLAG_READING_WIDTH: u32 = 8;
 pub const GPU_FLAG_DIFFUSE_LS: u32 = 16;
 /// Flyaways' lobes follow the cylinder law ([`crate::brdf::FiberLobes::Cylinder`]).
 pub const GPU_FLAG_FIBER_CYLINDER: u32 = 32;
+/// The flyaways in front of a surface hit shadow its lights
+/// ([`crate::hybrid::BakeMetadata::flyaway_shadow`]).
+pub const GPU_FLAG_FLYAWAY_SHADOW: u32 = 64;
 
 /// [`GpuLevel::surface`]: per texel a frame and a cluster index.
 pub const GPU_SURFACE_CLUSTERED: u32 = 0;
@@ -184,7 +187,8 @@ impl GpuModel {
             | if m.coarse_visibility { GPU_FLAG_COARSE_VISIBILITY } else { 0 }
             | if m.reading == crate::brdf::BrdfReading::Width { GPU_FLAG_READING_WIDTH } else { 0 }
             | if m.diffuse == crate::brdf::DiffuseLaw::LommelSeeliger { GPU_FLAG_DIFFUSE_LS } else { 0 }
-            | if m.fiber_lobes == crate::brdf::FiberLobes::Cylinder { GPU_FLAG_FIBER_CYLINDER } else { 0 };
+            | if m.fiber_lobes == crate::brdf::FiberLobes::Cylinder { GPU_FLAG_FIBER_CYLINDER } else { 0 }
+            | if m.flyaway_shadow { GPU_FLAG_FLYAWAY_SHADOW } else { 0 };
         let mut out = GpuModel {
             header: GpuModelHeader {
                 origin: t.origin.to_array(),

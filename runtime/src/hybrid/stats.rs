@@ -114,6 +114,8 @@ pub struct ModelStats {
     pub diffuse: &'static str,
     /// The flyaways' lobes (`facing` or `cylinder`, format 1.11).
     pub fiber_lobes: &'static str,
+    /// The flyaways shadow the surface's lights (format 1.13).
+    pub flyaway_shadow: bool,
     pub source_bbox: [f32; 6],
     pub source_dims: [u32; 3],
     pub seed: u64,
@@ -234,6 +236,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
         coarse_visibility: m.meta.coarse_visibility,
         diffuse: m.meta.diffuse.name(),
         fiber_lobes: m.meta.fiber_lobes.name(),
+        flyaway_shadow: m.meta.flyaway_shadow,
         source_bbox: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
         source_dims: m.meta.source_dims,
         seed: m.meta.seed,

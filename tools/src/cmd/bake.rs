@@ -172,6 +172,11 @@ pub struct BakeArgs {
     /// baker/FIT_MEASUREMENTS.md, "The flyaways' lobes as cylinders")
     #[arg(long, value_enum, default_value = "cylinder")]
     pub flyaway_lobes: FiberLobesArg,
+    /// Light the surface as if the flyaways were not there, rather than through the
+    /// flyaways in front of it toward each light (format 1.13's MODEL flag bit 5;
+    /// baker/FIT_MEASUREMENTS.md, "The flyaways' shadow on the surface").
+    #[arg(long)]
+    pub no_flyaway_shadow: bool,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -299,6 +304,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             FiberLobesArg::Cylinder => fabric_runtime::brdf::FiberLobes::Cylinder,
             FiberLobesArg::Facing => fabric_runtime::brdf::FiberLobes::Facing,
         },
+        shadow_surface: !args.no_flyaway_shadow,
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {

@@ -41,7 +41,7 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
     let m = &info.model;
     let mut s = String::new();
     let _ = writeln!(s, "{}: hybrid model, format {}.{}, {} bytes ({})", path.display(), info.version.0, info.version.1, info.file_size, mib(info.file_size));
-    let _ = writeln!(s, "  level 0: {}x{} texels, {} levels; BRDF reading: {}; fitted with height-field shadowing: {}; volumetric factor: {}; diffuse law: {}; flyaway lobes: {}", m.width, m.height, m.levels, m.reading, m.fitted_with_shadowing, m.volumetric, m.diffuse, m.fiber_lobes);
+    let _ = writeln!(s, "  level 0: {}x{} texels, {} levels; BRDF reading: {}; fitted with height-field shadowing: {}; volumetric factor: {}; diffuse law: {}; flyaway lobes: {}; flyaways shadow the surface: {}", m.width, m.height, m.levels, m.reading, m.fitted_with_shadowing, m.volumetric, m.diffuse, m.fiber_lobes, m.flyaway_shadow);
     let _ = writeln!(s, "  tile: origin ({}, {}), size {} x {}, top plane z = {}, height scale {}, flyaway voxel depth {}", m.tile_origin[0], m.tile_origin[1], m.tile_size[0], m.tile_size[1], m.top_z, m.height_scale, m.voxel_depth);
     let _ = writeln!(s, "  depth below the top plane (min / mean / max): {}", range(&m.depth));
     let b = m.source_bbox;

@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 12;
+pub const VERSION_MINOR: u16 = 13;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -54,6 +54,9 @@ pub const MODEL_FLAG_DIFFUSE_LS: u32 = 8;
 /// The flyaways' lobes follow the cylinder law ([`crate::brdf::FiberLobes::Cylinder`];
 /// 1.11).
 pub const MODEL_FLAG_FIBER_CYLINDER: u32 = 16;
+/// MODEL flags bit 5: the flyaways in front of a surface hit shadow its lights
+/// ([`crate::hybrid::BakeMetadata::flyaway_shadow`]; 1.13).
+pub const MODEL_FLAG_FLYAWAY_SHADOW: u32 = 32;
 
 /// Section kinds (runtime/HYBRID_FORMAT.md §"Sections").
 #[repr(u32)]

@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 use serde::Serialize;
 
 use super::error::{FileError, FormatError};
-use super::{HEADER_SIZE, MAGIC, MAX_SECTIONS, MODEL_FLAG_COARSE_VISIBILITY, MODEL_FLAG_DIFFUSE_LS, MODEL_FLAG_FIBER_CYLINDER, MODEL_FLAG_SHADOWING, MODEL_FLAG_VOLUMETRIC, SECTION_ALIGN, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind, VERSION_MAJOR};
+use super::{HEADER_SIZE, MAGIC, MAX_SECTIONS, MODEL_FLAG_COARSE_VISIBILITY, MODEL_FLAG_DIFFUSE_LS, MODEL_FLAG_FIBER_CYLINDER, MODEL_FLAG_FLYAWAY_SHADOW, MODEL_FLAG_SHADOWING, MODEL_FLAG_VOLUMETRIC, SECTION_ALIGN, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind, VERSION_MAJOR};
 use crate::brdf::{BrdfReading, DiffuseLaw, FiberLobes};
 use crate::hybrid::model::{MAX_DIM, max_levels};
 use crate::hybrid::stats::{ModelStats, model_stats};
@@ -218,6 +218,7 @@ struct ModelHeader {
     coarse_visibility: bool,
     diffuse: DiffuseLaw,
     fiber_lobes: FiberLobes,
+    flyaway_shadow: bool,
     tile: Tile,
 }
 
@@ -236,12 +237,12 @@ fn parse_model_section(index: usize, b: &[u8]) -> Result<ModelHeader, FormatErro
     }
     let reading = BrdfReading::from_u32(u32_at(b, 12)).ok_or_else(|| bad(format!("BRDF reading {} is unknown (0 = bounded, 1 = width)", u32_at(b, 12))))?;
     let flags = u32_at(b, 16);
-    if flags & !(MODEL_FLAG_SHADOWING | MODEL_FLAG_VOLUMETRIC | MODEL_FLAG_COARSE_VISIBILITY | MODEL_FLAG_DIFFUSE_LS | MODEL_FLAG_FIBER_CYLINDER) != 0 {
+    if flags & !(MODEL_FLAG_SHADOWING | MODEL_FLAG_VOLUMETRIC | MODEL_FLAG_COARSE_VISIBILITY | MODEL_FLAG_DIFFUSE_LS | MODEL_FLAG_FIBER_CYLINDER | MODEL_FLAG_FLYAWAY_SHADOW) != 0 {
         return Err(bad(format!("unknown flags {flags:#x}")));
     }
     let f = |o| f32_at(b, o);
     let tile = Tile { origin: Vec2::new(f(24), f(28)), size: Vec2::new(f(32), f(36)), top_z: f(40), height_scale: f(44), voxel_depth: f(48) };
-    Ok(ModelHeader { width, height, levels: levels as usize, reading, shadowing: flags & MODEL_FLAG_SHADOWING != 0, volumetric: flags & MODEL_FLAG_VOLUMETRIC != 0, coarse_visibility: flags & MODEL_FLAG_COARSE_VISIBILITY != 0, diffuse: if flags & MODEL_FLAG_DIFFUSE_LS != 0 { DiffuseLaw::LommelSeeliger } else { DiffuseLaw::Lambert }, fiber_lobes: if flags & MODEL_FLAG_FIBER_CYLINDER != 0 { FiberLobes::Cylinder } else { FiberLobes::Facing }, tile })
+    Ok(ModelHeader { width, height, levels: levels as usize, reading, shadowing: flags & MODEL_FLAG_SHADOWING != 0, volumetric: flags & MODEL_FLAG_VOLUMETRIC != 0, coarse_visibility: flags & MODEL_FLAG_COARSE_VISIBILITY != 0, diffuse: if flags & MODEL_FLAG_DIFFUSE_LS != 0 { DiffuseLaw::LommelSeeliger } else { DiffuseLaw::Lambert }, fiber_lobes: if flags & MODEL_FLAG_FIBER_CYLINDER != 0 { FiberLobes::Cylinder } else { FiberLobes::Facing }, flyaway_shadow: flags & MODEL_FLAG_FLYAWAY_SHADOW != 0, tile })
 }
 
 /// The META section's fields: source bbox, source dims, seed, fit errors, note.
@@ -357,7 +358,7 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
         Some((index, data)) => parse_meta_section(index, data, mh.levels)?,
         None => (Aabb::new(Vec3::ZERO, Vec3::ZERO), [0; 3], 0, Vec::new(), String::new()),
     };
-    let meta = BakeMetadata { reading: mh.reading, fitted_with_shadowing: mh.shadowing, volumetric: mh.volumetric, coarse_visibility: mh.coarse_visibility, diffuse: mh.diffuse, fiber_lobes: mh.fiber_lobes, fit_error, source_bbox, source_dims, seed, note };
+    let meta = BakeMetadata { reading: mh.reading, fitted_with_shadowing: mh.shadowing, volumetric: mh.volumetric, coarse_visibility: mh.coarse_visibility, diffuse: mh.diffuse, fiber_lobes: mh.fiber_lobes, flyaway_shadow: mh.flyaway_shadow, fit_error, source_bbox, source_dims, seed, note };
     let model = HybridModel { tile: mh.tile, height, levels, meta };
     model.validate()?;
     Ok(model)

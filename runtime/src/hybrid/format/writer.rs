@@ -5,13 +5,13 @@ use std::io::Write;
 use std::path::Path;
 
 use super::error::{FileError, FormatError};
-use super::{HEADER_SIZE, MAGIC, MODEL_FLAG_COARSE_VISIBILITY, MODEL_FLAG_DIFFUSE_LS, MODEL_FLAG_FIBER_CYLINDER, MODEL_FLAG_SHADOWING, MODEL_FLAG_VOLUMETRIC, MODEL_SECTION_SIZE, SECTION_ALIGN, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind, VERSION_MAJOR, VERSION_MINOR};
+use super::{HEADER_SIZE, MAGIC, MODEL_FLAG_COARSE_VISIBILITY, MODEL_FLAG_DIFFUSE_LS, MODEL_FLAG_FIBER_CYLINDER, MODEL_FLAG_FLYAWAY_SHADOW, MODEL_FLAG_SHADOWING, MODEL_FLAG_VOLUMETRIC, MODEL_SECTION_SIZE, SECTION_ALIGN, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind, VERSION_MAJOR, VERSION_MINOR};
 use crate::hybrid::{HybridModel, Surface, compact};
 
 /// The MODEL section (64 bytes).
 fn model_section(m: &HybridModel) -> Vec<u8> {
     let mut b = Vec::with_capacity(MODEL_SECTION_SIZE);
-    for v in [m.width(), m.height_px(), m.levels.len() as u32, m.meta.reading as u32, (if m.meta.fitted_with_shadowing { MODEL_FLAG_SHADOWING } else { 0 }) | (if m.meta.volumetric { MODEL_FLAG_VOLUMETRIC } else { 0 }) | (if m.meta.coarse_visibility { MODEL_FLAG_COARSE_VISIBILITY } else { 0 }) | (if m.meta.diffuse == crate::brdf::DiffuseLaw::LommelSeeliger { MODEL_FLAG_DIFFUSE_LS } else { 0 }) | (if m.meta.fiber_lobes == crate::brdf::FiberLobes::Cylinder { MODEL_FLAG_FIBER_CYLINDER } else { 0 }), 0] {
+    for v in [m.width(), m.height_px(), m.levels.len() as u32, m.meta.reading as u32, (if m.meta.fitted_with_shadowing { MODEL_FLAG_SHADOWING } else { 0 }) | (if m.meta.volumetric { MODEL_FLAG_VOLUMETRIC } else { 0 }) | (if m.meta.coarse_visibility { MODEL_FLAG_COARSE_VISIBILITY } else { 0 }) | (if m.meta.diffuse == crate::brdf::DiffuseLaw::LommelSeeliger { MODEL_FLAG_DIFFUSE_LS } else { 0 }) | (if m.meta.fiber_lobes == crate::brdf::FiberLobes::Cylinder { MODEL_FLAG_FIBER_CYLINDER } else { 0 }) | (if m.meta.flyaway_shadow { MODEL_FLAG_FLYAWAY_SHADOW } else { 0 }), 0] {
         b.extend_from_slice(&v.to_le_bytes());
     }
     let t = &m.tile;
