@@ -190,14 +190,15 @@ float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool vol
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
 
-// The light factor of a surface hit of `level`: light_factor's, the flyaways' shadow
-// (flyaway_shadow) after the height field's where that lets the light through. Twin: the
-// `visible` closure of Scene::shade_surface.
+// The light factor of a surface hit of `level`: light_factor's, at level 0 the flyaways'
+// shadow (flyaway_shadow) after the height field's where that lets the light through
+// (coarser levels carry it in their fit). Twin: the `visible` closure of
+// Scene::shade_surface.
 float surface_light_factor(uint level, vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
     float v = 1.0;
     if (shadowed) {
         v = visibility(p, wi, dist, limited);
-        if (v > 0.0) {
+        if (level == 0u && v > 0.0) {
             v *= flyaway_shadow(level, p, wi, dist, limited);
         }
     }
@@ -409,7 +410,7 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], flo
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
         // What the flyaways let through of the map (format 1.13; Scene::shade_surface).
-        float sky = shadowed ? flyaway_sky(level, p) : 1.0;
+        float sky = level == 0u ? flyaway_sky(level, p) : 1.0;
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);
