@@ -82,8 +82,10 @@ void main() {
         // level.glsl: levels of a footprint
         LevelMix m = level_mix_axes(e.u.x != 0u, e.a.xy, e.a.zw);
         o.x = vec4(float(m.lo), float(m.hi), m.weight, float(m.taps));
-        o.y = vec4(m.axis, float(m.fly_lo), float(m.fly_hi));
-        o.z = vec4(m.fly_weight, float(m.taps_minor), m.minor_axis);
+        // The shadow levels packed beside the fly levels (+ 64 · shadow_lo, hi) and beside
+        // taps_minor (+ shadow_weight / 2).
+        o.y = vec4(m.axis, float(m.fly_lo) + 64.0 * float(m.shadow_lo), float(m.fly_hi) + 64.0 * float(m.shadow_hi));
+        o.z = vec4(m.fly_weight, float(m.taps_minor) + 0.5 * m.shadow_weight, m.minor_axis);
         o.w = vec4(m.fly_axis_a, m.fly_axis_b);
         o.x.w += 1000.0 * float(m.fly_taps_a) + 100000.0 * float(m.fly_taps_b);
     } else if (e.kind == 6u) {

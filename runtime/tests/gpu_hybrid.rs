@@ -776,9 +776,8 @@ fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
 }
 
 /// Format 1.13's flyaway shadow (`Scene::flyaway_shadow`, `flyaway_sky`): the twins agree
-/// near (level 0 alone, and level 0 blended with level 1 without shadow rays), under a
-/// low light and under the sky; the shadow darkens level 0's surface, never brightens a
-/// pixel, and leaves a coarse level (which carries it in its fit) as it was.
+/// near and far, at a coarse level with its own flyaways, under a low light and under
+/// the sky, and the shadow darkens the surface, never brightens a pixel.
 #[test]
 fn flyaway_shadows_match_the_cpu_twin_and_only_darken() {
     let device = device();
@@ -795,7 +794,7 @@ fn flyaway_shadows_match_the_cpu_twin_and_only_darken() {
     let cases = [
         (Case { name: "flyaway shadow near, level 0", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() } }, &lights[..]),
         (Case { name: "flyaway shadow near, level 0, light at 75°", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), ..opts.clone() } }, &low[..]),
-        (Case { name: "flyaway shadow near, auto, no shadow rays", camera: near, options: CpuRenderOptions { shadows: ShadowMode::Off, ..opts.clone() } }, &lights[..]),
+        (Case { name: "flyaway shadow far 60°, auto, no shadow rays", camera: Camera::orbit_orthographic(60.0, 30.0, centre, 40.0, 6.0, 32, 32), options: CpuRenderOptions { shadows: ShadowMode::Off, ..opts.clone() } }, &lights[..]),
         (Case { name: "flyaway shadow level 2", camera: Camera::orbit_orthographic(50.0, 250.0, centre, 40.0, 3.0, 24, 24), options: CpuRenderOptions { level: LevelChoice::Fixed(2), ..opts.clone() } }, &lights[..]),
         (Case { name: "flyaway shadow near, under the sky", camera: near, options: CpuRenderOptions { level: LevelChoice::Fixed(0), env: Some(sky_light()), ..opts.clone() } }, &[][..]),
     ];
@@ -805,11 +804,10 @@ fn flyaway_shadows_match_the_cpu_twin_and_only_darken() {
         let with = render(&shadowed, &case.camera, lights, &case.options).unwrap();
         let moved = relative_rmse(&with, &without).unwrap();
         println!("{}: the flyaway shadow moved the image by {moved:.4}", case.name);
-        if case.options.level == LevelChoice::Fixed(2) {
-            assert_eq!(with.pixels, without.pixels, "{}: a coarse level carries the shadow in its fit", case.name);
-            continue;
-        }
-        assert!(moved > 1e-3, "{}: the flyaway shadow moved the image by only {moved}", case.name);
+        // Measured: near 0.10–0.32, level 2 0.0056, far (the footprint's coarse levels,
+        // the synthetic model's sparse flyaways) 0.0007.
+        let least = if case.name.contains("near") { 0.05 } else { 2e-4 };
+        assert!(moved > least, "{}: the flyaway shadow moved the image by only {moved}", case.name);
         let brighter = with.pixels.iter().zip(&without.pixels).filter(|(a, b)| (**a - **b).max_element() > 1e-6 * b.max_element().max(1.0)).count();
         assert_eq!(brighter, 0, "{}: {brighter} pixels brighter with the flyaway shadow", case.name);
     }

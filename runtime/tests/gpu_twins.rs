@@ -201,6 +201,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     let mut box_grids = 0;
     // ... and flyaway grids longer along the footprint's major axis.
     let mut anisotropic_fly_grids = 0;
+    let mut shadows_blended = 0;
     let rel = |a: f32, b: f32, floor: f32| (a - b).abs() / a.abs().max(b.abs()).max(floor);
     for (e, g) in inputs.iter().zip(&out) {
         let k = e.kind as usize;
@@ -251,8 +252,11 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
             5 => {
                 let axes = (e.u[0] != 0).then(|| (Vec2::new(e.a[0], e.a[1]), Vec2::new(e.a[2], e.a[3])));
                 let m = scene.level_mix_axes(axes);
-                // x.w holds taps + 1000 · fly_taps.0 + 100000 · fly_taps.1.
-                let same = (m.lo as f32, m.hi as f32, (m.taps + 1000 * m.fly_taps.0 + 100_000 * m.fly_taps.1) as f32, m.fly.0 as f32, m.fly.1 as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y);
+                // x.w holds taps + 1000 · fly_taps.0 + 100000 · fly_taps.1; y.z, y.w the fly
+                // levels + 64 · the shadow levels; z.y taps_minor + the shadow weight / 2.
+                let same = (m.lo as f32, m.hi as f32, (m.taps + 1000 * m.fly_taps.0 + 100_000 * m.fly_taps.1) as f32, (m.fly.0 + 64 * m.shadow.0) as f32, (m.fly.1 + 64 * m.shadow.1) as f32, m.taps_minor as f32) == (gx.x, gx.y, gx.w, gy.z, gy.w, gz.y.floor());
+                let shadow_weight = (m.shadow.2 - 2.0 * gz.y.fract()).abs();
+                shadows_blended += (m.shadow.2 > 0.0) as usize;
                 box_grids += (m.taps_minor > 1 && m.fly_taps.1 > 1) as usize;
                 anisotropic_fly_grids += (m.fly_taps.0 > m.fly_taps.1) as usize;
                 let gw = Vec4::from(g.w);
@@ -260,7 +264,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let fly_axes = (m.fly_axes.0 - Vec2::new(gw.x, gw.y)).abs().max_element().max((m.fly_axes.1 - Vec2::new(gw.z, gw.w)).abs().max_element()) / scale;
                 let axis = ((m.axis - Vec2::new(gy.x, gy.y)).abs().max_element()) / m.axis.length().max(1e-30);
                 let minor = ((m.minor_axis - Vec2::new(gz.z, gz.w)).abs().max_element()) / m.minor_axis.length().max(m.axis.length()).max(1e-30);
-                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(axis).max(minor).max(fly_axes) }
+                if !same { 1.0 } else { (m.weight - gx.z).abs().max((m.fly.2 - gz.x).abs()).max(shadow_weight).max(axis).max(minor).max(fly_axes) }
             }
             6 => {
                 let p = Vec4::from(e.a).truncate();
@@ -308,6 +312,7 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
     println!("marches: {hits} hits and {limits} step limits of {per_kind} rays, {crossed} of {per_kind} flyaway marches cross a voxel");
     assert!(hits > per_kind / 4 && limits > 0 && crossed > per_kind / 4, "inputs too easy: {hits} hits, {limits} limits, {crossed} crossings");
     assert!(box_grids > per_kind / 10, "only {box_grids} of {per_kind} level choices read a box grid");
+    assert!(shadows_blended > per_kind / 20, "only {shadows_blended} of {per_kind} level choices blend two shadow levels");
     assert!(anisotropic_fly_grids > per_kind / 20, "only {anisotropic_fly_grids} of {per_kind} level choices march an anisotropic flyaway grid");
     let names = ["packing", "height-field march", "shadow rays", "flyaway march", "texel response", "level choice", "texel lookups", "scalars", "spread axes"];
     for k in 0..9 {

@@ -29,6 +29,11 @@ struct LevelMix {
     uint fly_lo;
     uint fly_hi;
     float fly_weight;
+    // The flyaway levels a surface hit's shadow is marched through (format 1.13; twin:
+    // LevelMix::shadow).
+    uint shadow_lo;
+    uint shadow_hi;
+    float shadow_weight;
     // The flyaways' box grid: fly_taps_a x fly_taps_b parallel rays spread over the
     // spans fly_axis_a (the footprint's major axis), fly_axis_b (world x-y), each
     // marching the fly levels (1 x 1: the ray alone).
@@ -59,7 +64,7 @@ struct LevelMix {
 };
 
 LevelMix level_single(uint level) {
-    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u, vec2(0.0), vec2(0.0), 1u, 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 0u, 0u);
+    return LevelMix(level, level, 0.0, vec2(0.0), 1u, vec2(0.0), 1u, level, level, 0.0, level, level, 0.0, vec2(0.0), vec2(0.0), 1u, 1u, vec2(0.0), vec2(0.0), 1u, 1u, level, level, 0.0, vec2(0.0), vec2(0.0), 0u, 0u);
 }
 
 // Lookups of the box grid along a footprint's major axis: G per anisotropic lookup, at
@@ -207,6 +212,13 @@ bool box_grid(float major, float minor, uint n, float lambda, float bias, out Bo
 }
 
 // Levels floor(lambda) and floor(lambda) + 1 with the weight of the second, clamped.
+// The level (before linear_levels) whose flyaways a surface hit's shadow is marched
+// through: that of the footprint's geometric mean width. Twin: shadow_lambda
+// (runtime/src/cpu/level.rs).
+float shadow_lambda(float major, float minor, float bias) {
+    return 0.5 * (log2(major) + log2(max(minor, 1e-6))) + bias;
+}
+
 void linear_levels(float lambda, uint last, out uint lo, out uint hi, out float w) {
     lo = 0u;
     hi = 0u;
@@ -282,6 +294,7 @@ LevelMix level_mix_axes(bool ok, vec2 a, vec2 b) {
     LevelMix m;
     FlyGrid fly = fly_box_grid(major, taps, bias, FLY_GRID);
     linear_levels(fly.level, last, m.fly_lo, m.fly_hi, m.fly_weight);
+    linear_levels(shadow_lambda(major, minor, bias), last, m.shadow_lo, m.shadow_hi, m.shadow_weight);
     bool fly_grid = fly.spread > 0.0;
     m.fly_taps_a = fly_grid ? fly.taps_major : 1u;
     m.fly_taps_b = fly_grid ? fly.taps_minor : 1u;

@@ -180,8 +180,8 @@ float visibility(vec3 p, vec3 wi, float dist, inout uint limited) {
 
 // What the flyaways in front of a surface hit let through toward a light, and of the
 // environment (format 1.13): defined with the flyaways' march in trace.glsl.
-float flyaway_shadow(uint level, vec3 p, vec3 wi, float dist, inout uint limited);
-float flyaway_sky(uint level, vec3 p);
+float flyaway_shadow_mixed(uint lo, uint hi, float w, vec3 p, vec3 wi, float dist, inout uint limited);
+float flyaway_sky_mixed(uint lo, uint hi, float w, vec3 p);
 
 // The light factor of a hit: shadow ray where `shadowed`, the volumetric factor where
 // `volumetric`.
@@ -190,17 +190,14 @@ float light_factor(vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool vol
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
 
-// The light factor of a surface hit of `level`: light_factor's, at level 0 the flyaways'
-// shadow (flyaway_shadow) after the height field's where that lets the light through
-// (coarser levels carry it in their fit). Twin: the `visible` closure of
+// The light factor of a surface hit: light_factor's, the flyaways' shadow at the pixel's
+// shadow levels fly.x, fly.y (weight fly_w of y; flyaway_shadow_mixed) after the height
+// field's where that lets the light through. Twin: the `visible` closure of
 // Scene::shade_surface.
-float surface_light_factor(uint level, vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
-    float v = 1.0;
-    if (shadowed) {
-        v = visibility(p, wi, dist, limited);
-        if (level == 0u && v > 0.0) {
-            v *= flyaway_shadow(level, p, wi, dist, limited);
-        }
+float surface_light_factor(uvec2 fly, float fly_w, vec3 p, vec3 wi, float dist, vec3 wo, bool shadowed, bool volumetric, inout uint limited) {
+    float v = shadowed ? visibility(p, wi, dist, limited) : 1.0;
+    if (v > 0.0) {
+        v *= flyaway_shadow_mixed(fly.x, fly.y, fly_w, p, wi, dist, limited);
     }
     return volumetric ? v * volume_factor(wi, wo) : v;
 }
@@ -365,7 +362,7 @@ uint level0_distinct(vec3 p, uint n, inout vec2 tap_xy[MAX_SURFACE_TAPS], float 
 
 // Radiance of a surface hit at p on `level` (filtered as surface_texel says), each
 // light's visibility once.
-vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, inout uint limited) {
+vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], float tap_t[MAX_SURFACE_TAPS], uint n, bool shadowed, bool volumetric, uvec2 fly, float fly_w, inout uint limited) {
     uint reading = model_reading();
     uint diffuse = model_diffuse();
     Edit e = hit_edit(p);
@@ -405,12 +402,12 @@ vec3 shade_blend(uint level, vec3 p, vec3 wo, vec2 tap_xy[MAX_SURFACE_TAPS], flo
         if (max3(response) <= 0.0) {
             continue;
         }
-        radiance += irradiance * response * surface_light_factor(level, p, wi, dist, wo, shadowed, volumetric, limited);
+        radiance += irradiance * response * surface_light_factor(fly, fly_w, p, wi, dist, wo, shadowed, volumetric, limited);
     }
 #ifdef HYBRID_ENV
     if (HAS_ENV) {
         // What the flyaways let through of the map (format 1.13; Scene::shade_surface).
-        float sky = level == 0u ? flyaway_sky(level, p) : 1.0;
+        float sky = flyaway_sky_mixed(fly.x, fly.y, fly_w, p);
         for (uint c = 0u; c < count; ++c) {
             TexelRef r;
             float w = surface_texel(level, p, wo, tap_xy, tap_w, tap_t, n, c, r);

@@ -88,6 +88,29 @@ float flyaway_sky(uint level, vec3 p) {
     return march_flyaways(level, vec3(p.xy, model.top_z), vec3(0.0, 0.0, -1.0), 0.0, s, params.max_flyaway_columns, FLY_LIGHT_NONE, unused).transmittance;
 }
 
+// flyaway_shadow blended over the flyaway levels lo, hi (weight w of hi) of a pixel's
+// footprint, as its view ray's flyaways are; the two levels a loop, not two calls (one
+// inlined march). Twin: Scene::flyaway_shadow_mixed.
+float flyaway_shadow_mixed(uint lo, uint hi, float w, vec3 p, vec3 wi, float dist, inout uint limited) {
+    float t = 1.0;
+    for (uint k = 0u; k < ((w > 0.0 && hi != lo) ? 2u : 1u); ++k) {
+        float tk = flyaway_shadow(k == 0u ? lo : hi, p, wi, dist, limited);
+        t = k == 0u ? tk : t * (1.0 - w) + tk * w;
+    }
+    return t;
+}
+
+// flyaway_sky blended over the flyaway levels lo, hi (weight w of hi). Twin:
+// Scene::flyaway_sky_mixed.
+float flyaway_sky_mixed(uint lo, uint hi, float w, vec3 p) {
+    float t = 1.0;
+    for (uint k = 0u; k < ((w > 0.0 && hi != lo) ? 2u : 1u); ++k) {
+        float tk = flyaway_sky(k == 0u ? lo : hi, p);
+        t = k == 0u ? tk : t * (1.0 - w) + tk * w;
+    }
+    return t;
+}
+
 // The surface hit at t shaded with `level`, filtered as `mix` says at coarse levels.
 // Where the lookup at `offset` (world x-y) of a box grid reads the surface: where a ray
 // parallel to the pixel's, started `offset` beside it, meets the height field; the point
@@ -112,7 +135,7 @@ vec3 shade_surface(vec3 o, vec3 d, float t, uint level, LevelMix mix_, vec2 tap_
     bool volumetric = (model.flags & GPU_FLAG_VOLUMETRIC) != 0u;
     bool shadowed = level == 0u || (model.flags & GPU_FLAG_COARSE_VISIBILITY) == 0u;
     uint n = level == 0u ? min(mix_.fine_taps_a * mix_.fine_taps_b, MAX_SURFACE_TAPS) : min(mix_.taps * mix_.taps_minor, MAX_SURFACE_TAPS);
-    return shade_blend(level, p, -d, tap_xy, tap_t, n, shadowed, volumetric, shadow_limited);
+    return shade_blend(level, p, -d, tap_xy, tap_t, n, shadowed, volumetric, uvec2(mix_.shadow_lo, mix_.shadow_hi), mix_.shadow_weight, shadow_limited);
 }
 
 // Most rays of a flyaway grid: FLY_MAX_ANISOTROPY x FLY_FINE_GRID along the major axis by

@@ -125,8 +125,6 @@ pub enum PrefilterError {
     Output(ModelError),
     #[error("invalid prefilter options: {0}")]
     Options(String),
-    #[error("tracing the flyaways' shadow on level 0: {0}")]
-    FlyawayShadow(#[from] fabric_runtime::cpu::CpuRenderError),
 }
 
 /// One level's figures.
@@ -250,14 +248,6 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     let nt = backlit.len();
     let tracer = HeightTracer::new(model, opts.periodic);
     let shadowed = model.meta.fitted_with_shadowing && opts.light_visibility;
-    // Level 0's flyaways in front of each texel toward ω_i, where they shadow the surface
-    // (format 1.13): the coarse levels carry that shadow in their fit.
-    let no_lights: [fabric_runtime::scene::Light; 0] = [];
-    let fly_scene = if model.meta.flyaway_shadow && model.levels[0].flyaways.as_ref().is_some_and(|f| !f.nodes.is_empty()) {
-        Some(fabric_runtime::cpu::Scene::for_rays(model, &no_lights, fabric_runtime::cpu::CpuRenderOptions { periodic: opts.periodic, ..Default::default() })?)
-    } else {
-        None
-    };
     let texel = model.texel_size();
     let t_tilt = Instant::now();
     let mut tilts = (opts.view_tilt && count > 1).then(|| view_tilt::trace_visible_hits(model, count, opts.periodic));
@@ -300,7 +290,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                                 a.add(v);
                             }
                         }
-                        None => level0_target(&level0.texel_brdf(ci, cj), &tracer, fly_scene.as_ref(), model, texel, ci, cj, &pairs, (opts.masking, shadowed), reading, &mut acc),
+                        None => level0_target(&level0.texel_brdf(ci, cj), &tracer, model, texel, ci, cj, &pairs, (opts.masking, shadowed), reading, &mut acc),
                     }
                     let b = finer.texel_brdf(ci, cj);
                     let p = &b.params;
@@ -531,11 +521,9 @@ fn graded_fit(fp: &Footprint, pairs: &[Pair], s: &FitSettings, first: CoarseFit)
 /// Adds level-0 texel (i, j) to `acc`: its response at each pair, weighted by its
 /// visible projected area toward ω_o (height-field ray from the texel's centre; the
 /// area of a height-field patch seen along ω per unit of plane is ∇d·ω_xy + ω_z, d the
-/// depth) when `masking`, by the light's visibility toward ω_i when `shadowed`, and by
-/// what the level-0 flyaways let through toward ω_i where `fly` (a scene of the model)
-/// is given (`Scene::flyaway_shadow`, format 1.13).
+/// depth) when `masking`, and by the light's visibility toward ω_i when `shadowed`.
 #[allow(clippy::too_many_arguments)] // one texel's inputs
-fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, fly: Option<&fabric_runtime::cpu::Scene>, model: &HybridModel, texel: Vec2, i: u32, j: u32, pairs: &[Pair], (masking, shadowed): (bool, bool), reading: BrdfReading, acc: &mut [TargetAcc]) {
+fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, model: &HybridModel, texel: Vec2, i: u32, j: u32, pairs: &[Pair], (masking, shadowed): (bool, bool), reading: BrdfReading, acc: &mut [TargetAcc]) {
     let (x, y) = (model.tile.origin.x + (i as f32 + 0.5) * texel.x, model.tile.origin.y + (j as f32 + 0.5) * texel.y);
     let d = tracer.depth_at(x, y);
     let p = Vec3::new(x, y, model.tile.top_z - d);
@@ -545,10 +533,6 @@ fn level0_target(b: &TexelBrdf, tracer: &HeightTracer, fly: Option<&fabric_runti
     for (a, &(wi, wo)) in acc.iter_mut().zip(pairs) {
         let f = texel_response(b, wi, wo, reading, model.meta.diffuse);
         let lit = if !shadowed || seen(wi) { 1.0 } else { 0.0 };
-        let lit = match fly {
-            Some(scene) if lit > 0.0 => lit * scene.flyaway_shadow(0, p, wi, f32::INFINITY).0,
-            _ => lit,
-        };
         let area = if !masking { 1.0 } else if seen(wo) { (gx * wo.x + gy * wo.y + wo.z).max(0.0) } else { 0.0 };
         a.num += area * lit * f;
         a.den += area;

@@ -29,6 +29,10 @@ pub struct LevelMix {
     /// the pixel aliases their coverage — or, through a box grid, finer
     /// ([`fly_box_grid`]).
     pub fly: (usize, usize, f32),
+    /// The flyaway levels (lo, hi, weight of hi) a surface hit's shadow is marched
+    /// through (`Scene::flyaway_shadow_mixed`, format 1.13): the whole footprint's
+    /// ([`shadow_lambda`]), one march standing for all of its texels.
+    pub shadow: (usize, usize, f32),
     /// The flyaways' box grid: `fly_taps.0` × `fly_taps.1` parallel rays spread over the
     /// spans `fly_axes` (world x–y; the footprint's major axis first), each marching
     /// `fly`'s levels ((1, 1): the ray alone).
@@ -60,7 +64,7 @@ pub struct FlyCover {
 
 impl LevelMix {
     pub fn single(level: usize) -> LevelMix {
-        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1), fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover: None }
+        LevelMix { lo: level, hi: level, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly: (level, level, 0.0), shadow: (level, level, 0.0), fly_axes: (Vec2::ZERO, Vec2::ZERO), fly_taps: (1, 1), fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover: None }
     }
 }
 
@@ -237,6 +241,18 @@ pub fn fly_cell(offset: Vec2, axis: Vec2, taps: u32, minor_axis: Vec2, taps_mino
         (if c.is_nan() { 0.0 } else { c.clamp(0.0, (n.max(1) - 1) as f32) }) as u32
     };
     cell(s, taps) + taps * cell(r, taps_minor)
+}
+
+/// The level (before [`linear_levels`]) whose flyaways a surface hit's shadow is marched
+/// through, for a footprint of `major` × `minor` level-0 texels: the level of its
+/// geometric mean width, log2 √(major · minor) + bias, where one march stands for the
+/// mean of the footprint's shadows (format 1.13; baker/FIT_MEASUREMENTS.md, "The
+/// flyaways' shadow on the surface"). Twin: `shadow_lambda` in shaders/common/level.glsl.
+pub fn shadow_lambda(major: f32, minor: f32, bias: f32) -> f32 {
+    // Felt 64², far views at 16 px (4 texels per pixel), 0° / 45° / 70°: 14.1 / 10.5 /
+    // 9.5% off the supersampled level 0 at this level; 15.8 / 13.6 / 11.0% one level
+    // finer, 15.3 / 12.6 / 10.9% one coarser; 23.3 / 24.9 / 20.4% with level 0's alone.
+    0.5 * (major.log2() + minor.max(1e-6).log2()) + bias
 }
 
 /// Rays per axis of the flyaways' grid under `CoarseFilter::Fine`: voxels a quarter of

@@ -32,8 +32,8 @@ pub struct SurfaceHit {
     /// World hit point.
     pub point: Vec3,
     /// Visibility of the scene's first light from the hit (1 without shadowing): the
-    /// height field's, times, at level 0, what the flyaways let through toward it where
-    /// they shadow the surface (`Scene::flyaway_shadow`).
+    /// height field's, times what the flyaways let through toward it where they shadow
+    /// the surface (`Scene::flyaway_shadow`).
     pub visibility: f32,
     /// Transmittance of the flyaways in front of the hit (1 when none were crossed or
     /// they were not marched).
@@ -91,7 +91,7 @@ impl Scene<'_> {
             let point = ray.at(t);
             let v = visibility(point, &mut limited);
             let fly = match self.lights.first() {
-                Some(l) if v > 0.0 && flyaways && level == 0 => {
+                Some(l) if v > 0.0 && flyaways => {
                     let s = l.sample(point);
                     self.flyaway_shadow(level, point, s.wi, s.distance).0
                 }

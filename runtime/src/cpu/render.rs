@@ -222,6 +222,7 @@ impl<'a> Scene<'a> {
         let g = self.options.coarse_filter.grid();
         let fly_grid = fly_box_grid(major, n, bias, self.options.coarse_filter.fly_grid());
         let fly = linear_levels(fly_grid.lambda, last);
+        let shadow = linear_levels(shadow_lambda(major, minor, bias), last);
         let (fly_axes, fly_taps) = if fly_grid.spread > 0.0 { ((axis * fly_grid.spread, minor_axis * fly_grid.spread), (fly_grid.taps_major, fly_grid.taps_minor)) } else { ((Vec2::ZERO, Vec2::ZERO), (1, 1)) };
         // `Split`: the coverage from the fine grid, where both grids spread and the shading
         // rays march a coarse level: at level 0 the finer grid's voxels are theirs, and its
@@ -261,7 +262,7 @@ impl<'a> Scene<'a> {
             } else {
                 ((Vec2::ZERO, Vec2::ZERO), (1, 1))
             };
-            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes, fine_taps, cover };
+            return LevelMix { lo, hi, weight, axis, taps: n, minor_axis: Vec2::ZERO, taps_minor: 1, fly, shadow, fly_axes, fly_taps, fine_axes, fine_taps, cover };
         };
         let (axis_b, minor_b) = (axis * (grid.span_major / major), minor_axis * (grid.span_minor / minor.max(1e-6)));
         // Level 0's grid blended with level 1's box grid up to where a FILTER_GRID grid's
@@ -272,13 +273,13 @@ impl<'a> Scene<'a> {
         let reach = level0_reach_weight((major / grid_taps(n, FILTER_GRID) as f32).log2() + FILTER_OFFSET + bias);
         // A model without a chain reads level 0 through its grid at every distance.
         if last == 0 {
-            return LevelMix { lo: 0, hi: 0, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
+            return LevelMix { lo: 0, hi: 0, weight: 0.0, axis: Vec2::ZERO, taps: 1, minor_axis: Vec2::ZERO, taps_minor: 1, fly, shadow, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
         }
         if reach < 1.0 {
-            return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
+            return LevelMix { lo: 0, hi: 1, weight: reach, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, shadow, fly_axes, fly_taps, fine_axes: (axis, minor_axis), fine_taps: level0_grid_taps(minor, n, g), cover };
         }
         let (lo, hi, weight) = linear_levels(grid.lambda, last);
-        LevelMix { lo, hi, weight, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover }
+        LevelMix { lo, hi, weight, axis: axis_b, taps: grid.taps_major, minor_axis: minor_b, taps_minor: grid.taps_minor, fly, shadow, fly_axes, fly_taps, fine_axes: (Vec2::ZERO, Vec2::ZERO), fine_taps: (1, 1), cover }
     }
 
     /// The steps, in world x–y on the plane at height `z`, to where the rays through the
@@ -407,8 +408,8 @@ impl<'a> Scene<'a> {
     /// in direction `wi` at `distance`: the path from `p` to the top plane (or to the
     /// light, if nearer), marched down from its upper end as a camera ray is (the coarser
     /// level of [`Scene::grazing_level`] past its column budget); with whether the march
-    /// ran out of columns. Level 0's surface is lit so (`shade_surface`; coarser levels
-    /// carry it in their fit). 1 unless the model's flyaways shadow the surface
+    /// ran out of columns. A surface hit reads the pixel's flyaway levels
+    /// ([`Scene::flyaway_shadow_mixed`]). 1 unless the model's flyaways shadow the surface
     /// (`BakeMetadata::flyaway_shadow`, format 1.13) and flyaways are rendered, or for a
     /// light below the sheet. The height field's shadow rays are another matter: the
     /// bake fits without them by default, and the flyaways' shadow holds either way. Only the surface is shadowed so: a flyaway's own
@@ -433,6 +434,33 @@ impl<'a> Scene<'a> {
             }
             None => (1.0, false),
         }
+    }
+
+    /// [`Scene::flyaway_shadow`] blended over the levels `(lo, hi, weight of hi)` of a
+    /// pixel's footprint (`LevelMix::shadow`): a footprint of many texels reads one
+    /// shadow for all of them, a coarse level's, where level 0's from the hit alone
+    /// would stand for every texel of it (felt 64², far views at 4 texels per pixel:
+    /// 20–25% off the supersampled level 0 with level 0's shadow, 9.5–14% with the
+    /// footprint's level; [`shadow_lambda`]). Twin: `flyaway_shadow_mixed` in
+    /// shaders/common/trace.glsl.
+    /// Returns the marches that ran out of columns with it.
+    pub fn flyaway_shadow_mixed(&self, (lo, hi, w): (usize, usize, f32), p: Vec3, wi: Vec3, distance: f32) -> (f32, u32) {
+        let (t, limited) = self.flyaway_shadow(lo, p, wi, distance);
+        if w > 0.0 && hi != lo {
+            let (th, lh) = self.flyaway_shadow(hi, p, wi, distance);
+            return (t * (1.0 - w) + th * w, limited as u32 + lh as u32);
+        }
+        (t, limited as u32)
+    }
+
+    /// [`Scene::flyaway_sky`] blended over the flyaway levels `(lo, hi, weight of hi)`.
+    /// Twin: `flyaway_sky_mixed` in shaders/common/trace.glsl.
+    pub fn flyaway_sky_mixed(&self, (lo, hi, w): (usize, usize, f32), p: Vec3) -> f32 {
+        let t = self.flyaway_sky(lo, p);
+        if w > 0.0 && hi != lo {
+            return t * (1.0 - w) + self.flyaway_sky(hi, p) * w;
+        }
+        t
     }
 
     /// What the flyaways of `level` let through of the environment at surface point `p`:
@@ -798,23 +826,21 @@ impl<'a> Scene<'a> {
         let volumetric = self.model.meta.volumetric;
         // Coarse levels of a prefiltered model carry the light's visibility.
         let shadowed = level == 0 || !self.model.meta.coarse_visibility;
-        // The height field's shadow, then, at level 0, the flyaways' in front of the hit
-        // (format 1.13): coarser levels carry theirs in their fit, as the prefilter folds
-        // it into each footprint's targets (a coarse level's own flyaways, marched toward
-        // the light, cast blotches the mean of level 0's does not have: felt 64², far
-        // views 16 px, 20–25% off the supersampled level 0 against 2.6–4.6% without).
+        // The height field's shadow, then the flyaways' between the hit and the light
+        // (format 1.13) at the footprint's levels, at every surface level: a coarse
+        // level's visibility (`coarse_visibility`) is the height field's alone.
         let visible = |p: Vec3, s: &LightSample| {
-            let v = if shadowed {
-                let v = self.visibility(p, s, &mut shadow_limited);
-                let (fly, limited) = if level == 0 && v > 0.0 { self.flyaway_shadow(level, p, s.wi, s.distance) } else { (1.0, false) };
-                shadow_limited += limited as u32;
+            let v = if shadowed { self.visibility(p, s, &mut shadow_limited) } else { 1.0 };
+            let v = if v > 0.0 {
+                let (fly, limited) = self.flyaway_shadow_mixed(mix.shadow, p, s.wi, s.distance);
+                shadow_limited += limited;
                 v * fly
             } else {
-                1.0
+                v
             };
             if volumetric { v * volume_factor(s.wi, wo) } else { v }
         };
-        let sky = if level == 0 && self.options.env.is_some() { self.flyaway_sky(level, p) } else { 1.0 };
+        let sky = if self.options.env.is_some() { self.flyaway_sky_mixed(mix.shadow, p) } else { 1.0 };
         // The edit at the hit (the same for all its texels).
         let edit = self.edited.then(|| self.edit_at(p));
         let edited = |b: TexelBrdf| edit.map_or(b, |e| e.apply(b, true));

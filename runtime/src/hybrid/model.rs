@@ -231,11 +231,10 @@ pub struct BakeMetadata {
     /// How the flyaways' lobes fall with the azimuth about the fibre
     /// ([`crate::brdf::FiberLobes`]; the cylinder since format 1.11).
     pub fiber_lobes: crate::brdf::FiberLobes,
-    /// Whether the flyaways shadow the surface's lights: at a level-0 surface hit each
-    /// light's visibility times what the level-0 flyaways let through between the hit
-    /// and the top plane toward it, the environment's times what they let through
-    /// straight up (`cpu::render::Scene::flyaway_shadow`; format 1.13). Coarser levels
-    /// carry it in their fit (the prefilter's targets).
+    /// Whether the flyaways shadow the surface's lights: at a surface hit each light's
+    /// factor times what the flyaways of the footprint's level let through between the
+    /// hit and the top plane toward it, the environment's times what they let through
+    /// straight up (`cpu::render::Scene::flyaway_shadow_mixed`; format 1.13).
     pub flyaway_shadow: bool,
     /// Relative fit error per level (≥ 0), or negative where not measured.
     pub fit_error: Vec<f32>,
