@@ -35,7 +35,7 @@ use crate::fit::gradient::{GradientOptions, refine_gradient_from, with_gradient}
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, unit_albedos};
 use crate::fit::features::texel_features;
-use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, surface_shape};
+use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_clusters, flyaway_level, full_image_errors, surface_shape};
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::openness::{OpennessReport, fit_openness, measure_openness, openness_report, openness_views};
@@ -136,10 +136,25 @@ pub struct FlyawayOptions {
     /// How the flyaways' lobes fall with the azimuth about the fibre (format 1.11's
     /// cylinder law, or the frame facing the viewer of the files before).
     pub lobes: FiberLobes,
-    /// The flyaways shadow the surface's lights (format 1.13, MODEL flag bit 5;
+    /// Whether the flyaways shadow the surface's lights (format 1.13, MODEL flag bit 5;
     /// `BakeMetadata::flyaway_shadow`): the fit and the renderers light a surface hit
     /// through the flyaways in front of it, as the volume does.
-    pub shadow_surface: bool,
+    pub shadow_surface: FlyawayShadow,
+}
+
+/// [`FlyawayOptions::shadow_surface`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FlyawayShadow {
+    /// The flyaways fitted both ways, the model kept whose whole image matches the full
+    /// volume's training images better over 4×4 blocks. Measured at 64² (held-out over
+    /// 4×4 blocks, without → with): felt 20.0 → 14.6%, twill 12.1 → 12.3%, satin 23.7 →
+    /// 24.0%; the shadow also costs the chain's agreement with level 0 (felt's 16 px
+    /// far views 2.6–4.6 → 9.5–14.1%, twill's 2.2–4.7 → 6.3–7.9%): where the flyaways are
+    /// few it buys nothing (baker/FIT_MEASUREMENTS.md, "The flyaways' shadow on the
+    /// surface").
+    Auto,
+    On,
+    Off,
 }
 
 impl Default for FlyawayOptions {
@@ -152,7 +167,7 @@ impl Default for FlyawayOptions {
         // 20–27%), felt 22.6 → 21.2%, twill 14.6 → 14.2%; far views at 70° 5.5–10.9% →
         // 3.5–4.9% (baker/FIT_MEASUREMENTS.md and PREFILTER_MEASUREMENTS.md, "The
         // flyaways' lobes as cylinders").
-        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder, shadow_surface: true }
+        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder, shadow_surface: FlyawayShadow::Auto }
     }
 }
 
@@ -221,6 +236,8 @@ pub enum BakeError {
     Cluster(String),
     #[error("mip chain: {0}")]
     Prefilter(#[from] PrefilterError),
+    #[error("flyaways: {0}")]
+    Flyaways(String),
     #[error("option {name} = {value}: {reason}")]
     BadOption { name: &'static str, value: String, reason: String },
 }
@@ -566,7 +583,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         coarse_visibility: false,
         diffuse: options.fit.diffuse,
         fiber_lobes: options.flyaways.as_ref().map_or(FiberLobes::Facing, |f| f.lobes),
-        flyaway_shadow: options.flyaways.as_ref().is_some_and(|f| f.shadow_surface),
+        // Decided with the flyaways' fit (FlyawayShadow::Auto); the surface's sees none.
+        flyaway_shadow: options.flyaways.as_ref().is_some_and(|f| f.shadow_surface == FlyawayShadow::On),
         fit_error: vec![fit_error],
         source_bbox: bbox,
         source_dims: [nx as u32, ny as u32, nz as u32],
@@ -861,17 +879,47 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let bar = begin_stage(progress, "flyaways: training renderings", pairs.len() as u64);
         let full_training = render_training(&full, &pairs, fo.spp.max(2), mix64(options.seed ^ 0x666c79), &|| bar.advance(1))?;
         bar.finish();
-        let bar = begin_stage(progress, "flyaways: fitting", 1);
-        let (fly_params, mut rep) = fit_flyaways(&model, &full, &full_training, half_seeds(mix64(options.seed ^ 0x666c79))[0], options.probe_rays, options.shadows, &shape, kf, options.fit.reading);
-        // The flyaways' lobes under the same energy bound as the surface's.
-        let fly_unit: Vec<Vec<f32>> = fly_params.par_iter().map(|p| unit_albedos(p, options.fit.reading)).collect();
-        let (fly_params, fly_albedos): (Vec<ClothParams>, Vec<f32>) = fly_params.iter().zip(&fly_unit).map(|(p, u)| cap_lobes(p, u)).unzip();
-        (energy.worst_flyaway_albedo, energy.flyaway_entries_capped) = albedo_summary(&fly_albedos);
+        // The flyaways fitted with and without their shadow on the surface (format 1.13),
+        // as the options say; with both, the whole model nearer the full volume's
+        // training images over 4×4 blocks is kept.
+        let shadows: &[bool] = match fo.shadow_surface {
+            FlyawayShadow::Auto => &[true, false],
+            FlyawayShadow::On => &[true],
+            FlyawayShadow::Off => &[false],
+        };
+        let bar = begin_stage(progress, "flyaways: fitting", shadows.len() as u64);
+        let jitter_seed = half_seeds(mix64(options.seed ^ 0x666c79))[0];
+        let mut tried: Vec<(HybridModel, FlyawayReport, Vec<f32>, f64)> = Vec::new();
+        for &shadow in shadows {
+            let mut m = model.clone();
+            m.meta.flyaway_shadow = shadow;
+            let (fly_params, rep) = fit_flyaways(&m, &full, &full_training, jitter_seed, options.probe_rays, options.shadows, &shape, kf, options.fit.reading);
+            // The flyaways' lobes under the same energy bound as the surface's.
+            let fly_unit: Vec<Vec<f32>> = fly_params.par_iter().map(|p| unit_albedos(p, options.fit.reading)).collect();
+            let (fly_params, fly_albedos): (Vec<ClothParams>, Vec<f32>) = fly_params.iter().zip(&fly_unit).map(|(p, u)| cap_lobes(p, u)).unzip();
+            m.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
+            if let (Some(g), Some(f)) = (&level0_gain, m.levels[0].flyaways.as_mut()) {
+                f.path_gain = Some(g.gain);
+            }
+            let block = if shadows.len() > 1 {
+                full_image_errors(&m, &full, &full_training, jitter_seed, options.probe_rays, options.shadows).map_err(|e| BakeError::Flyaways(format!("measuring their shadow on the training pairs: {e}")))?.1
+            } else {
+                f64::NAN
+            };
+            bar.advance(1);
+            tried.push((m, rep, fly_albedos, block));
+        }
         bar.finish();
+        let errors = |shadow: bool| tried.iter().find(|t| t.0.meta.flyaway_shadow == shadow).map(|t| t.3).filter(|e| e.is_finite());
+        let (block_error_shadowed, block_error_unshadowed) = (errors(true), errors(false));
+        let best = (0..tried.len()).min_by(|&a, &b| tried[a].3.total_cmp(&tried[b].3)).unwrap_or(0);
+        let (kept, mut rep, fly_albedos, _) = tried.swap_remove(best);
+        model = kept;
+        rep.shadow_surface = model.meta.flyaway_shadow;
+        (rep.block_error_shadowed, rep.block_error_unshadowed) = (block_error_shadowed, block_error_unshadowed);
+        (energy.worst_flyaway_albedo, energy.flyaway_entries_capped) = albedo_summary(&fly_albedos);
         rep.voxels = geometry.flyaways.len();
-        model.levels[0].flyaways = Some(flyaway_level(&geometry.flyaways, solid, &assignment, &fly_params, fo.alpha)?);
-        if let (Some(g), Some(f)) = (&level0_gain, model.levels[0].flyaways.as_mut()) {
-            f.path_gain = Some(g.gain);
+        if let Some(g) = &level0_gain {
             rep.path_gain = Some(g.gain.0.to_vec());
             rep.transmittance_volume = Some(g.level0_transmittance.to_vec());
             rep.transmittance_ungained = Some(g.level_transmittance.to_vec());

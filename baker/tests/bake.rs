@@ -35,8 +35,12 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(f.voxels > 0 && f.pixels > 0 && f.problem.is_none(), "{f:?}");
     assert!(f.error_fitted < f.error_without, "{f:?}");
     assert!(b.model.has_flyaways());
-    // And they shadow the surface's lights (format 1.13), in the fit and in the file.
-    assert!(b.model.meta.flyaway_shadow, "flyaways shadow the surface by default");
+    // Their shadow on the surface (format 1.13) tried both ways by default: the file keeps
+    // the one whose whole model is nearer the full volume's training images.
+    let (on, off) = (f.block_error_shadowed.expect("tried with the shadow"), f.block_error_unshadowed.expect("and without"));
+    assert!(on.is_finite() && off.is_finite() && on > 0.0 && off > 0.0, "{f:?}");
+    assert_eq!(b.model.meta.flyaway_shadow, on < off, "{f:?}");
+    assert_eq!(f.shadow_surface, b.model.meta.flyaway_shadow);
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
     // The peak memory after each stage (Linux reports it): one per timed stage, in bytes
     // (a process that rendered training images holds well over a MiB; a reading left in

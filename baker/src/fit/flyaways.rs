@@ -63,6 +63,36 @@ pub struct FlyawayReport {
     pub path_gain: Option<Vec<f32>>,
     pub transmittance_volume: Option<Vec<f64>>,
     pub transmittance_ungained: Option<Vec<f64>>,
+    /// Whether the flyaways shadow the surface in the model (format 1.13), and the whole
+    /// model's error against the full volume's training images over 4×4 blocks with
+    /// and without that shadow, each with its own flyaway fit, where both were tried
+    /// (`FlyawayShadow::Auto`).
+    pub shadow_surface: bool,
+    pub block_error_shadowed: Option<f64>,
+    pub block_error_unshadowed: Option<f64>,
+}
+
+/// The whole model's error against full-volume training images `training` (relative
+/// RMSE per pixel and over 4×4 blocks, all pairs): each pair's image measured through
+/// the model along the same rays the flyaway fit probes (`cpu::probe::measure_image`,
+/// `rays` per texel, jitter from `jitter_seed`).
+pub fn full_image_errors(model: &HybridModel, measure: &MeasureScene, training: &TrainingImages, jitter_seed: u64, rays: u32, shadows: bool) -> Result<(f64, f64), fabric_runtime::cpu::CpuRenderError> {
+    let (w, _) = measure.texels();
+    let jitter = image_jitter(jitter_seed);
+    let options = CpuRenderOptions { periodic: true, shadows: if shadows { ShadowMode::On } else { ShadowMode::Off }, ..Default::default() };
+    let images = training
+        .pairs
+        .iter()
+        .map(|pair| {
+            let ray = |x: u32, y: u32, s: u32| {
+                let (u, v) = jitter(y * w as u32 + x, s);
+                let (o, d) = measure.sample_ray(x as usize, y as usize, u, v, pair.wo);
+                Ray::new(o, d)
+            };
+            fabric_runtime::cpu::probe::measure_image(model, &options, pair.wi, 0, rays, &ray)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(crate::bake::image_errors(&images, &training.images, 0, 0))
 }
 
 /// Cluster of each flyaway voxel (k-means on the fiber axis tensor and the diameter),
@@ -206,7 +236,7 @@ pub fn fit_flyaways(
             .collect();
         rows.extend(batch);
     }
-    let mut report = FlyawayReport { voxels: 0, clusters, pixels: rows.len(), error_without: 0.0, error_fitted: 0.0, problem: None, path_gain: None, transmittance_volume: None, transmittance_ungained: None };
+    let mut report = FlyawayReport { voxels: 0, clusters, pixels: rows.len(), error_without: 0.0, error_fitted: 0.0, problem: None, path_gain: None, transmittance_volume: None, transmittance_ungained: None, shadow_surface: model.meta.flyaway_shadow, block_error_shadowed: None, block_error_unshadowed: None };
     let zero = vec![*shape; clusters];
     if rows.is_empty() || clusters == 0 {
         report.problem = Some("no training ray crosses a flyaway voxel".into());

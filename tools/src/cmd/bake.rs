@@ -45,6 +45,17 @@ pub enum FiberLobesArg {
     Facing,
 }
 
+/// Whether the flyaways shadow the surface (format 1.13).
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FlyawayShadowArg {
+    /// Both ways fitted; the model nearer the full volume's training images kept
+    Auto,
+    /// The surface lit through the flyaways in front of it
+    On,
+    /// The surface lit as if the flyaways were not there (as before 1.13)
+    Off,
+}
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ReadingArg {
     Bounded,
@@ -172,11 +183,12 @@ pub struct BakeArgs {
     /// baker/FIT_MEASUREMENTS.md, "The flyaways' lobes as cylinders")
     #[arg(long, value_enum, default_value = "cylinder")]
     pub flyaway_lobes: FiberLobesArg,
-    /// Light the surface as if the flyaways were not there, rather than through the
-    /// flyaways in front of it toward each light (format 1.13's MODEL flag bit 5;
-    /// baker/FIT_MEASUREMENTS.md, "The flyaways' shadow on the surface").
-    #[arg(long)]
-    pub no_flyaway_shadow: bool,
+    /// Whether the surface is lit through the flyaways in front of it toward each light
+    /// (format 1.13's MODEL flag bit 5): `auto` fits the flyaways both ways and keeps the
+    /// model nearer the full volume's training images; `on`, `off` (baker/FIT_MEASUREMENTS.md,
+    /// "The flyaways' shadow on the surface")
+    #[arg(long, value_enum, default_value = "auto")]
+    pub flyaway_shadow: FlyawayShadowArg,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -304,7 +316,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             FiberLobesArg::Cylinder => fabric_runtime::brdf::FiberLobes::Cylinder,
             FiberLobesArg::Facing => fabric_runtime::brdf::FiberLobes::Facing,
         },
-        shadow_surface: !args.no_flyaway_shadow,
+        shadow_surface: match args.flyaway_shadow {
+            FlyawayShadowArg::Auto => fabric_baker::bake::FlyawayShadow::Auto,
+            FlyawayShadowArg::On => fabric_baker::bake::FlyawayShadow::On,
+            FlyawayShadowArg::Off => fabric_baker::bake::FlyawayShadow::Off,
+        },
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
@@ -438,6 +454,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
             // Nodes 0, 4 and 7: 0°, 40° and 70°.
             let ratio = |k: usize| if tv[k] > 0.0 { tm[k] / tv[k] } else { 1.0 };
             println!("  level-0 path gain at 0°/40°/70°: {:.2}/{:.2}/{:.2} (Beer's law from α let through {:.2}/{:.2}/{:.2} of what the volume's flyaway voxels do)", g[0], g[4], g[7], ratio(0), ratio(4), ratio(7));
+        }
+        let shadow = if f.shadow_surface { "on" } else { "off" };
+        match (f.block_error_shadowed, f.block_error_unshadowed) {
+            (Some(on), Some(off)) => println!("  the flyaways' shadow on the surface: {shadow} (the whole model against the full volume's training images over 4x4 blocks: {:.2}% with it, {:.2}% without)", 100.0 * on, 100.0 * off),
+            _ => println!("  the flyaways' shadow on the surface: {shadow}"),
         }
     }
     if let Some(t) = &r.transmission {
