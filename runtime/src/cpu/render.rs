@@ -408,15 +408,15 @@ impl<'a> Scene<'a> {
     /// in direction `wi` at `distance`: the path from `p` to the top plane (or to the
     /// light, if nearer), marched down from its upper end as a camera ray is (the coarser
     /// level of [`Scene::grazing_level`] past its column budget); with whether the march
-    /// ran out of columns. A surface hit reads the pixel's flyaway levels
+    /// ran out of columns. A surface hit reads its footprint's levels
     /// ([`Scene::flyaway_shadow_mixed`]). 1 unless the model's flyaways shadow the surface
     /// (`BakeMetadata::flyaway_shadow`, format 1.13) and flyaways are rendered, or for a
     /// light below the sheet. The height field's shadow rays are another matter: the
-    /// bake fits without them by default, and the flyaways' shadow holds either way. Only the surface is shadowed so: a flyaway's own
-    /// lights see the height field alone, since the flyaways shadowing each other too
-    /// darkened felt to 0.80–0.97 of the truth's mean (baker/FIT_MEASUREMENTS.md, "The
-    /// flyaways' shadow on the surface"). Twin: `flyaway_shadow` in
-    /// shaders/common/trace.glsl.
+    /// bake fits without them by default, and the flyaways' shadow holds either way.
+    /// Only the surface is shadowed so: a flyaway's own lights see the height field
+    /// alone, since the flyaways shadowing each other too darkened felt to 0.80–0.97 of
+    /// the truth's mean (baker/FIT_MEASUREMENTS.md, "The flyaways' shadow on the
+    /// surface"). Twin: `flyaway_shadow` in shaders/common/trace.glsl.
     pub fn flyaway_shadow(&self, level: usize, p: Vec3, wi: Vec3, distance: f32) -> (f32, bool) {
         if !self.options.flyaways || !self.model.meta.flyaway_shadow || !(wi.z > 0.0) {
             return (1.0, false);
@@ -441,9 +441,8 @@ impl<'a> Scene<'a> {
     /// shadow for all of them, a coarse level's, where level 0's from the hit alone
     /// would stand for every texel of it (felt 64², far views at 4 texels per pixel:
     /// 20–25% off the supersampled level 0 with level 0's shadow, 9.5–14% with the
-    /// footprint's level; [`shadow_lambda`]). Twin: `flyaway_shadow_mixed` in
-    /// shaders/common/trace.glsl.
-    /// Returns the marches that ran out of columns with it.
+    /// footprint's level; [`shadow_lambda`]). Returns the marches that ran out of columns
+    /// with it. Twin: `flyaway_shadow_mixed` in shaders/common/trace.glsl.
     pub fn flyaway_shadow_mixed(&self, (lo, hi, w): (usize, usize, f32), p: Vec3, wi: Vec3, distance: f32) -> (f32, u32) {
         let (t, limited) = self.flyaway_shadow(lo, p, wi, distance);
         if w > 0.0 && hi != lo {
