@@ -211,7 +211,6 @@ bool box_grid(float major, float minor, uint n, float lambda, float bias, out Bo
     return true;
 }
 
-// Levels floor(lambda) and floor(lambda) + 1 with the weight of the second, clamped.
 // The level (before linear_levels) whose flyaways a surface hit's shadow is marched
 // through: that of the footprint's geometric mean width. Twin: shadow_lambda
 // (runtime/src/cpu/level.rs).
@@ -219,6 +218,7 @@ float shadow_lambda(float major, float minor, float bias) {
     return 0.5 * (log2(major) + log2(max(minor, 1e-6))) + bias;
 }
 
+// Levels floor(lambda) and floor(lambda) + 1 with the weight of the second, clamped.
 void linear_levels(float lambda, uint last, out uint lo, out uint hi, out float w) {
     lo = 0u;
     hi = 0u;
