@@ -733,7 +733,10 @@ fn the_split_filter_takes_the_flyaways_coverage_from_a_finer_grid_and_gains_on_t
     // within 0.4 points (3.60 / 4.00%), so it is not asserted there.
     use fabric_baker::prefilter::far_view::{VIEW_AZIMUTH, far_view_filtered};
     use fabric_runtime::cpu::CoarseFilter;
-    let felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
+    let mut felt = fabric_runtime::hybrid::format::read_file(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/goldens/models/felt.hyb")).unwrap();
+    // The coverage alone: the flyaways' shadow on the surface (format 1.13), whose own
+    // error at these views (felt 9.5–14%, baker/FIT_MEASUREMENTS.md) would hide it.
+    felt.meta.flyaway_shadow = false;
     for polar in [45.0f32, 70.0] {
         let boxed = far_view_filtered(&felt, polar, VIEW_AZIMUTH, 16, CoarseFilter::Box).unwrap();
         let split = far_view_filtered(&felt, polar, VIEW_AZIMUTH, 16, CoarseFilter::Split).unwrap();
