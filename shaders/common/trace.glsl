@@ -58,9 +58,8 @@ FlyawayMarch march_level_flyaways(vec3 o, vec3 d, float t_top, float t_end, uint
 // direction wi at `dist`: the path to the top plane (or to the light, if nearer), marched
 // down from its upper end, unshaded; 1 unless the model's flyaways shadow the surface
 // (GPU_FLAG_FLYAWAY_SHADOW), or for a light below the sheet; with or without the height
-// field's shadow rays (SHADOWS). Counts a
-// march that ran out of columns in `limited`. Twin: Scene::flyaway_shadow
-// (runtime/src/cpu/render.rs).
+// field's shadow rays (SHADOWS). Counts a march that ran out of columns in `limited`.
+// Twin: Scene::flyaway_shadow (runtime/src/cpu/render.rs).
 float flyaway_shadow(uint level, vec3 p, vec3 wi, float dist, inout uint limited) {
     if (!HAS_FLYAWAYS || (model.flags & GPU_FLAG_FLYAWAY_SHADOW) == 0u || !(wi.z > 0.0)) {
         return 1.0;

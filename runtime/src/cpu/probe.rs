@@ -64,8 +64,8 @@ pub struct ProbeTrace {
 
 impl Scene<'_> {
     /// Traces `ray` through level `level` of the model: the surface hit and, with
-    /// `flyaways`, the flyaway nodes in front of it (and their shadow on it), each with the visibility of the
-    /// scene's first light (or 1 with no light). The same march as [`Scene::trace_ray`].
+    /// `flyaways`, the flyaway nodes in front of it (and their shadow on it), each with
+    /// the visibility of the scene's first light (or 1 with no light). The same march as [`Scene::trace_ray`].
     pub fn probe_ray(&self, ray: &Ray, level: usize, flyaways: bool) -> ProbeTrace {
         let mut out = ProbeTrace::default();
         let Some(t_top) = self.enter_top(ray) else {

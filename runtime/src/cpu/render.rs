@@ -426,10 +426,16 @@ impl<'a> Scene<'a> {
             return (1.0, false);
         }
         let ray = Ray::new(p + wi * s, -wi);
-        let level = self.grazing_level(&ray, 0.0, s, level);
+        self.level_transmittance(self.grazing_level(&ray, 0.0, s, level), &ray, 0.0, s)
+    }
+
+    /// What the flyaways of `level` let through along `ray` over [t_start, t_end],
+    /// unshaded, and whether the march ran out of columns ((1, false) where the level has
+    /// none).
+    fn level_transmittance(&self, level: usize, ray: &Ray, t_start: f32, t_end: f32) -> (f32, bool) {
         match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
             Some(f) => {
-                let m = visit_flyaways(f, &self.grids[level], &ray, 0.0, s, self.options.max_flyaway_columns, |_, _, _, _| {});
+                let m = visit_flyaways(f, &self.grids[level], ray, t_start, t_end, self.options.max_flyaway_columns, |_, _, _, _| {});
                 (m.transmittance, m.limited)
             }
             None => (1.0, false),
@@ -473,11 +479,7 @@ impl<'a> Scene<'a> {
         if !self.options.flyaways || !self.model.meta.flyaway_shadow || !(s > 0.0 && s.is_finite()) {
             return 1.0;
         }
-        let ray = Ray::new(Vec3::new(p.x, p.y, self.model.tile.top_z), Vec3::NEG_Z);
-        match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
-            Some(f) => visit_flyaways(f, &self.grids[level], &ray, 0.0, s, self.options.max_flyaway_columns, |_, _, _, _| {}).transmittance,
-            None => 1.0,
-        }
+        self.level_transmittance(level, &Ray::new(Vec3::new(p.x, p.y, self.model.tile.top_z), Vec3::NEG_Z), 0.0, s).0
     }
 
     /// Traces one ray at `level`.
@@ -672,16 +674,7 @@ impl<'a> Scene<'a> {
         if !self.options.flyaways {
             return (1.0, false);
         }
-        let one = |level: usize| {
-            let level = self.grazing_level(ray, t_top, t_end, level);
-            match self.model.levels[level].flyaways.as_ref().filter(|f| !f.nodes.is_empty()) {
-                Some(f) => {
-                    let m = visit_flyaways(f, &self.grids[level], ray, t_top, t_end, self.options.max_flyaway_columns, |_, _, _, _| {});
-                    (m.transmittance, m.limited)
-                }
-                None => (1.0, false),
-            }
-        };
+        let one = |level: usize| self.level_transmittance(self.grazing_level(ray, t_top, t_end, level), ray, t_top, t_end);
         let (t, limited) = one(lo);
         if w > 0.0 && hi != lo {
             let (th, lh) = one(hi);
