@@ -28,7 +28,12 @@
 //   P(x; gamma) = exp(-x^2 / (2 gamma^2));  P = 1 for gamma <= 0 ("gamma = infinity")
 //   S_j = G(theta_i + theta_o; beta_j) * P(phi_i + phi_o; gamma_j)          reading 0, bounded
 //   S_j = G(theta_i + theta_o; max(beta_j * P(phi_i + phi_o; gamma_j), BETA_MIN))  reading 1, width
-// Both readings live here and only here (cloth_lobe_shape); a model file records which one
+//   S_j = G(theta_i + theta_o; w_j) * w_j / max(w_j, beta_j / HELD_RISE),
+//         w_j = max(beta_j * P(phi_i + phi_o; gamma_j), BETA_MIN)                     reading 2, held
+// The held reading (format 1.14) narrows as the width reading does but never rises above
+// HELD_RISE times the lobe's peak G(0; beta_j); the width reading's peak grows as 1/P, up
+// to 400 k_j. Where P >= 1 / HELD_RISE the two are the same.
+// All readings live here and only here (cloth_lobe_shape); a model file records which one
 // it was fitted with. F is the unpolarized dielectric Fresnel reflectance, fed with
 // cos theta_d, theta_d = (theta_o - theta_i) / 2 (cloth_fresnel_cos: the one place where
 // this is chosen; at the peak it equals the printed F(eta, theta_i)). max(cos phi_i, 0)^a
@@ -51,10 +56,12 @@
 #define CLOTH_MAX_LOBES 8
 #define CLOTH_READING_BOUNDED 0u
 #define CLOTH_READING_WIDTH 1u
+#define CLOTH_READING_HELD 2u
 #define CLOTH_DIFFUSE_LAMBERT 0u
 #define CLOTH_DIFFUSE_LOMMEL_SEELIGER 1u
 
 const float CLOTH_BETA_MIN = 1e-3;
+const float CLOTH_HELD_RISE = 4.0;
 const float CLOTH_BETA_MAX = 1e4;
 const float CLOTH_GAMMA_MIN = 1e-3;
 const float CLOTH_GAMMA_MAX = 1e4;
@@ -244,6 +251,12 @@ float cloth_lobe_shape(float theta_sum, float phi_sum, float beta, float gamma, 
     if (reading == CLOTH_READING_WIDTH) {
         beta = min(max(beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
         return cloth_gaussian(theta_sum, max(beta * cloth_phi_falloff(phi_sum, gamma), CLOTH_BETA_MIN));
+    }
+    if (reading == CLOTH_READING_HELD) {
+        beta = min(max(beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
+        float w = max(beta * cloth_phi_falloff(phi_sum, gamma), CLOTH_BETA_MIN);
+        // The width reading's Gaussian, its normalization 1/w held at 1/(beta/HELD_RISE).
+        return cloth_gaussian(theta_sum, w) * (w / max(beta / CLOTH_HELD_RISE, w));
     }
     return cloth_gaussian(theta_sum, beta) * cloth_phi_falloff(phi_sum, gamma);
 }

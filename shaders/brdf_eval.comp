@@ -54,7 +54,7 @@ void main() {
         p.lobes[j].gamma = e.lobe_gamma[j / 4][j % 4];
     }
     ClothFrame f = cloth_frame(e.n.xyz, e.t.xyz);
-    uint reading = e.reading == CLOTH_READING_WIDTH ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
+    uint reading = e.reading <= CLOTH_READING_HELD ? e.reading : CLOTH_READING_BOUNDED;
     outputs[i].brdf = vec4(cloth_brdf(p, f, e.wi.xyz, e.wo.xyz, reading), 0.0);
     outputs[i].lobe0 = vec4(cloth_lobe(p.lobes[0], p.eta, p.a, f, e.wi.xyz, e.wo.xyz, reading), 0.0);
     ClothFrame ff = cloth_fiber_frame(e.t.xyz, e.wo.xyz);

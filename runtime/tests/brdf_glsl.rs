@@ -96,14 +96,19 @@ fn every_glsl_function_of_the_twin_exists_in_rust_and_back() {
 
 /// `count` inputs in batches through the GLSL twin: every output finite, non-negative and
 /// within its input's bound: k_d + Σ k_j/(√(2π)·β), with β the lobe's width (bounded
-/// reading) or the narrowest the width reading allows (BETA_MIN), Fresnel and shadowing
-/// being at most 1 — as the Rust twin's million-input test checks on the CPU.
+/// reading), that width over HELD_RISE (held) or the narrowest the width reading allows
+/// (BETA_MIN), Fresnel and shadowing being at most 1 — as the Rust twin's million-input
+/// test checks on the CPU.
 fn bound_of(input: &BrdfEvalInput) -> f32 {
+    use fabric_runtime::brdf::{BrdfReading, HELD_RISE};
     let p = input.params();
-    let width = input.reading == 1;
     let kd = p.kd.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element();
     let peak = |l: &fabric_runtime::brdf::ClothLobe| {
-        let beta = if width { BETA_MIN } else { l.beta.clamp(BETA_MIN, 1e4) };
+        let beta = match input.reading() {
+            BrdfReading::Width => BETA_MIN,
+            BrdfReading::Held => (l.beta.clamp(BETA_MIN, 1e4) / HELD_RISE).max(BETA_MIN),
+            BrdfReading::Bounded => l.beta.clamp(BETA_MIN, 1e4),
+        };
         l.k.max(glam::Vec3::ZERO).min(glam::Vec3::splat(K_MAX)).max_element() * 0.398_942_3 / beta
     };
     kd + p.lobes().iter().map(peak).sum::<f32>()

@@ -334,10 +334,15 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
 fn every_include_agrees_with_its_rust_twin() {
     let device = CheckedDevice::new().expect("a Vulkan device (lavapipe in CI)");
     check(&examples::sample_model(), false, &device);
-    check(&examples::synthetic_model(64, 7), true, &device);
-    // The Lommel–Seeliger diffuse law (format 1.6) through texel_response.
+    // The width reading, read by the shader from the model's flags.
+    let mut width = examples::synthetic_model(64, 7);
+    width.meta.reading = fabric_runtime::brdf::BrdfReading::Width;
+    check(&width, true, &device);
+    // The Lommel–Seeliger diffuse law (format 1.6) through texel_response, under the held
+    // reading (format 1.14).
     let mut ls = examples::synthetic_model(64, 7);
     ls.meta.diffuse = DiffuseLaw::LommelSeeliger;
+    ls.meta.reading = fabric_runtime::brdf::BrdfReading::Held;
     // With a visibility gradient on every level (format 1.12: read after the view tilts
     // in binding 13) through texel_response.
     examples::add_view_tilts(&mut ls, 0.3, 5);

@@ -2,6 +2,7 @@
 //! damaged, truncated or hostile file gets its own clear error, never a panic), plus a
 //! quick randomized corruption run. The long run is `#[ignore]`d: see the end.
 
+use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::hybrid::format::{self, FormatError, HEADER_SIZE, MAGIC, SECTION_ENTRY_SIZE, SECTION_OPTIONAL, SectionEntry, SectionKind};
 use fabric_runtime::hybrid::{HybridModel, ModelError, NO_NODE, Surface, examples};
 
@@ -750,6 +751,25 @@ fn model_flag_bits_3_to_5_are_the_diffuse_and_flyaway_laws_and_the_flyaway_shado
 }
 
 #[test]
+fn the_brdf_reading_is_read_and_written_and_an_unknown_one_is_rejected() {
+    // MODEL offset 12: 0 = bounded, 1 = width, 2 = held (1.14).
+    let mut parts = Parts::of(&sample_bytes());
+    let set = |p: &mut Parts, r: u32| p.find(SectionKind::Model, 0)[12..16].copy_from_slice(&r.to_le_bytes());
+    for (value, reading) in [(0u32, BrdfReading::Bounded), (1, BrdfReading::Width), (2, BrdfReading::Held)] {
+        set(&mut parts, value);
+        assert_eq!(format::read(&parts.assemble()).unwrap().meta.reading, reading);
+        let mut m = sample();
+        m.meta.reading = reading;
+        assert_eq!(format::read(&format::to_bytes(&m).unwrap()).unwrap().meta.reading, reading, "round trip");
+    }
+    for value in [3u32, 255, u32::MAX] {
+        set(&mut parts, value);
+        let err = format::read(&parts.assemble()).unwrap_err().to_string();
+        assert!(err.contains("MODEL") && err.contains(&format!("BRDF reading {value} is unknown")), "{err}");
+    }
+}
+
+#[test]
 fn fuzz_seeds_are_current() {
     // runtime/fuzz/seeds: valid files the fuzzers start from (runtime/fuzz/README.md).
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
@@ -768,6 +788,10 @@ fn fuzz_seeds_are_current() {
     }), ("flyaway_shadow.hyb", {
         let mut m = sample();
         m.meta.flyaway_shadow = true;
+        m
+    }), ("held.hyb", {
+        let mut m = sample();
+        m.meta.reading = BrdfReading::Held;
         m
     })] {
         let bytes = format::to_bytes(&model).unwrap();

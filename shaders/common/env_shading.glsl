@@ -165,12 +165,16 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
         float cp = cos(phi);
         float pf = cylinder ? 1.0 : cloth_phi_falloff(phi + ao.phi, lobe.gamma);
         float cs = cylinder ? cloth_half_cos(cp) : cp;
-        vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cs, a)) * (bounded ? pf : 1.0));
+        // The width and held readings fold P into beta' (the held reading's height
+        // beta'/max(beta', beta/HELD_RISE) as well).
+        float beta_eff = max(beta * pf, CLOTH_BETA_MIN);
+        float height = bounded ? pf : (reading == CLOTH_READING_HELD ? beta_eff / max(beta / CLOTH_HELD_RISE, beta_eff) : 1.0);
+        vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cs, a)) * height);
         if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
             continue;
         }
         if (!bounded) {
-            env_theta_cells(theta_c, max(beta * pf, CLOTH_BETA_MIN), k_theta, ao, eta, cells);
+            env_theta_cells(theta_c, beta_eff, k_theta, ao, eta, cells);
         }
         // To the constant 4, as env_theta_cells (cells past k_theta have no mass).
         for (uint i = 0u; i < 4u; ++i) {

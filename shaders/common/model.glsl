@@ -28,6 +28,7 @@
 #define GPU_FLAG_DIFFUSE_LS 16u
 #define GPU_FLAG_FIBER_CYLINDER 32u
 #define GPU_FLAG_FLYAWAY_SHADOW 64u
+#define GPU_FLAG_READING_HELD 128u
 #define GPU_SURFACE_CLUSTERED 0u
 #define GPU_SURFACE_PER_TEXEL 1u
 #define NO_NODE 0xffffffffu
@@ -119,6 +120,9 @@ ivec2 tile_index(int i, int j, ivec2 n) {
 }
 
 uint model_reading() {
+    if ((model.flags & GPU_FLAG_READING_HELD) != 0u) {
+        return CLOTH_READING_HELD;
+    }
     return (model.flags & GPU_FLAG_READING_WIDTH) != 0u ? CLOTH_READING_WIDTH : CLOTH_READING_BOUNDED;
 }
 

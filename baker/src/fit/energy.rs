@@ -78,11 +78,11 @@ pub fn lobe_albedo_at(lobe: &ClothLobe, eta: f32, a: f32, theta_o: f32, phi_o: f
     let mut sum = 0.0f64;
     // The peak lies at θ_i = −θ_o, φ_i = −φ_o (θ_i + θ_o = 0, φ_i + φ_o = 0).
     for (phi_i, w_phi) in nodes(-pi, pi, true, -phi_o, gamma, 96, 32) {
-        // The θ width at this φ (node placement only): the width reading narrows the
-        // Gaussian by P(φ_i + φ_o).
+        // The θ width at this φ (node placement only): the width and held readings
+        // narrow the Gaussian by P(φ_i + φ_o).
         let width = match reading {
             BrdfReading::Bounded => lobe.beta,
-            BrdfReading::Width => lobe.beta * cloth_phi_falloff(phi_i + phi_o, lobe.gamma),
+            BrdfReading::Width | BrdfReading::Held => lobe.beta * cloth_phi_falloff(phi_i + phi_o, lobe.gamma),
         }
         .max(BETA_MIN);
         for (theta_i, w_theta) in nodes(-0.5 * pi, 0.5 * pi, false, -theta_o, width, 64, 32) {
@@ -165,7 +165,7 @@ mod tests {
 
     #[test]
     fn the_quadrature_agrees_with_a_dense_grid_for_broad_and_sharp_lobes() {
-        for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+        for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
             // The brute force resolves the θ width with about ten cells across it (under the
             // width reading it narrows to β·P(φ_i + φ_o), hence the finer θ), and γ in φ.
             for (beta, gamma, n) in [(0.3f32, 1.5f32, (300usize, 600usize)), (0.03, 0.5, (6000, 400)), (0.02, 3.0, (3000, 400))] {

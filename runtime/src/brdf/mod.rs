@@ -25,11 +25,20 @@
 //! P(x; γ) = exp(−x² / (2γ²)),  P ≡ 1 for γ ≤ 0    γ > 0 clamped to [GAMMA_MIN, GAMMA_MAX]
 //! S_j = G(θ_i+θ_o; β_j) · P(φ_i+φ_o; γ_j)          BrdfReading::Bounded (default)
 //! S_j = G(θ_i+θ_o; max(β_j · P(φ_i+φ_o; γ_j), BETA_MIN))   BrdfReading::Width
+//! S_j = G(θ_i+θ_o; w_j) · w_j / max(w_j, β_j / HELD_RISE),
+//!       w_j = max(β_j · P(φ_i+φ_o; γ_j), BETA_MIN)                         BrdfReading::Held
 //! ```
 //! - Eq. 2 printed has no β_j and a width that shrinks without bound; the bounded
 //!   reading keeps the intent (a Gaussian in θ_i + θ_o whose strength falls off with
 //!   φ_i + φ_o). The "width" reading is the printed one with β_j put back and a floor.
-//!   Both are here and only here; a model file records which one it was fitted with.
+//!   The "held" reading (format 1.14) narrows the Gaussian as the width reading does but
+//!   holds its height: S_j ≤ HELD_RISE · G(0; β_j) everywhere, where the width reading's
+//!   peak grows as 1/P up to 1/(√(2π)·BETA_MIN) — a needle of up to 400 k_j off the
+//!   azimuth the lobe faces, which the fits never see and other views do
+//!   (baker/FIT_MEASUREMENTS.md, "The held reading"). Where P ≥ 1/HELD_RISE the two
+//!   are the same.
+//!   All three are here and only here; a model file records which one it was fitted
+//!   with.
 //! - F is the unpolarized dielectric Fresnel reflectance with relative index η, fed with
 //!   cos θ_d, θ_d = (θ_o − θ_i)/2 as in fiber models ([`cloth_fresnel_cos`], the one
 //!   place where the choice is made). At the specular peak θ_o = −θ_i this equals the
@@ -69,6 +78,9 @@ pub const MAX_LOBES: usize = 8;
 pub const BETA_MIN: f32 = 1e-3;
 /// Widest lobe width β (radians); wider is flat anyway.
 pub const BETA_MAX: f32 = 1e4;
+/// How far the held reading lets a lobe rise above its peak G(0; β) as P narrows it:
+/// at most this factor (the width reading: up to β / BETA_MIN).
+pub const HELD_RISE: f32 = 4.0;
 /// Narrowest φ falloff γ (radians) when it is on.
 pub const GAMMA_MIN: f32 = 1e-3;
 /// Widest φ falloff γ (radians).
@@ -99,6 +111,10 @@ pub enum BrdfReading {
     Bounded = 0,
     /// S = G(θ_i+θ_o; max(β·P(φ_i+φ_o; γ), BETA_MIN)): the printed width, with β and a floor.
     Width = 1,
+    /// S = G(θ_i+θ_o; w) · w / max(w, β/HELD_RISE), w = max(β·P(φ_i+φ_o; γ), BETA_MIN):
+    /// the width narrowed as printed, the height held to at most HELD_RISE times the
+    /// lobe's peak (format 1.14).
+    Held = 2,
 }
 
 impl BrdfReading {
@@ -106,6 +122,7 @@ impl BrdfReading {
         match v {
             0 => Some(BrdfReading::Bounded),
             1 => Some(BrdfReading::Width),
+            2 => Some(BrdfReading::Held),
             _ => None,
         }
     }
@@ -114,6 +131,7 @@ impl BrdfReading {
         match self {
             BrdfReading::Bounded => "bounded",
             BrdfReading::Width => "width",
+            BrdfReading::Held => "held",
         }
     }
 }
@@ -366,7 +384,7 @@ pub fn cloth_phi_falloff(x: f32, gamma: f32) -> f32 {
 }
 
 /// The shape S_j of one lobe at θ_i + θ_o = `theta_sum`, φ_i + φ_o = `phi_sum`, under
-/// either reading (the only place where the readings differ).
+/// any reading (the only place where the readings differ).
 #[inline]
 pub fn cloth_lobe_shape(theta_sum: f32, phi_sum: f32, beta: f32, gamma: f32, reading: BrdfReading) -> f32 {
     match reading {
@@ -374,6 +392,13 @@ pub fn cloth_lobe_shape(theta_sum: f32, phi_sum: f32, beta: f32, gamma: f32, rea
         BrdfReading::Width => {
             let beta = beta.max(BETA_MIN).min(BETA_MAX);
             cloth_gaussian(theta_sum, (beta * cloth_phi_falloff(phi_sum, gamma)).max(BETA_MIN))
+        }
+        BrdfReading::Held => {
+            let beta = beta.max(BETA_MIN).min(BETA_MAX);
+            let w = (beta * cloth_phi_falloff(phi_sum, gamma)).max(BETA_MIN);
+            // The width reading's Gaussian, its normalization 1/w held at 1/(β/HELD_RISE)
+            // once w falls below that.
+            cloth_gaussian(theta_sum, w) * (w / (beta / HELD_RISE).max(w))
         }
     }
 }

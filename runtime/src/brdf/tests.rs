@@ -45,7 +45,7 @@ fn peak_value_matches_the_closed_form() {
     let rp = (eta * c - ct) / (eta * c + ct);
     let fres = 0.5 * (rs * rs + rp * rp);
     let shadow = pi.cos().powf(p.a as f64);
-    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+    for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
         let got = cloth_brdf(&p, &f, wi, wo, reading);
         for ch in 0..3 {
             let spec: f64 = p.lobes().iter().map(|l| l.k[ch] as f64 / ((2.0 * std::f64::consts::PI).sqrt() * l.beta as f64)).sum();
@@ -119,6 +119,43 @@ fn readings_agree_where_the_falloff_is_one() {
 }
 
 #[test]
+fn the_held_reading_is_the_width_reading_until_it_would_rise_past_its_bound() {
+    let lobe = ClothLobe { k: Vec3::ONE, beta: 0.2, gamma: 0.5 };
+    let peak = cloth_gaussian(0.0, lobe.beta);
+    // Where P ≥ 1/HELD_RISE the two readings are one lobe, at every θ.
+    for phi_sum in [0.0f32, 0.3, -0.6, 0.5 * (2.0 * HELD_RISE.ln()).sqrt()] {
+        assert!(cloth_phi_falloff(phi_sum, lobe.gamma) >= 1.0 / HELD_RISE - 1e-6);
+        for theta_sum in [0.0f32, 0.01, -0.05, 0.3] {
+            let (w, h) = (cloth_lobe_shape(theta_sum, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Width), cloth_lobe_shape(theta_sum, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Held));
+            assert!((w - h).abs() <= 1e-5 * w.max(1e-6), "φ {phi_sum} θ {theta_sum}: {w} vs {h}");
+        }
+    }
+    // Past it the width reading becomes a needle (its peak 1/(√(2π)·max(βP, BETA_MIN)),
+    // 400 at φ_i + φ_o = π here); the held one keeps the same width and stops at
+    // HELD_RISE times the lobe's peak.
+    for phi_sum in [1.0f32, 2.0, std::f32::consts::PI] {
+        let (w, h) = (cloth_lobe_shape(0.0, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Width), cloth_lobe_shape(0.0, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Held));
+        assert!((h - HELD_RISE * peak).abs() <= 1e-4 * h && w > h, "φ {phi_sum}: width {w}, held {h}, peak {peak}");
+        // The same θ profile: their ratio is one constant across θ.
+        let width = (lobe.beta * cloth_phi_falloff(phi_sum, lobe.gamma)).max(BETA_MIN);
+        let ratio = |t: f32| cloth_lobe_shape(t, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Held) / cloth_lobe_shape(t, phi_sum, lobe.beta, lobe.gamma, BrdfReading::Width);
+        assert!((ratio(0.5 * width) - h / w).abs() <= 1e-4 * (h / w), "φ {phi_sum}");
+    }
+    assert!(cloth_lobe_shape(0.0, std::f32::consts::PI, lobe.beta, lobe.gamma, BrdfReading::Width) > 300.0);
+    // On a million random and extreme inputs no lobe of the held reading passes
+    // HELD_RISE · k · G(0; β) (Fresnel and shadowing are at most 1; the cosine too).
+    for (i, input) in generate_inputs(200_000, 0x4e1d).iter().enumerate().filter(|(_, x)| x.reading() == BrdfReading::Held) {
+        let p = input.params();
+        let l = &p.lobes[0];
+        let bound = HELD_RISE * l.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX)).max_element() * cloth_gaussian(0.0, l.beta.max(BETA_MIN).min(BETA_MAX)) * 1.0001;
+        let out = input.evaluate();
+        for v in out.lobe0.iter().take(3) {
+            assert!(*v <= bound.max(1e-30), "input {i}: lobe 0 {v} > {bound}: {input:?}");
+        }
+    }
+}
+
+#[test]
 fn reciprocal_without_shadowing_and_even_in_the_tangent_sign() {
     let mut rng = SplitMix64(7);
     for _ in 0..2000 {
@@ -127,7 +164,7 @@ fn reciprocal_without_shadowing_and_even_in_the_tangent_sign() {
         let mut p = silk();
         let f = cloth_frame(n, t);
         let g = cloth_frame(n, -t);
-        for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+        for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
             // t ≡ −t: tangents are axes.
             let x = cloth_brdf(&p, &f, wi, wo, reading);
             let y = cloth_brdf(&p, &g, wi, wo, reading);
@@ -236,7 +273,7 @@ fn a_cylinders_lobe_is_the_facing_lobe_where_light_and_viewer_share_the_azimuth(
         let th = rng.range(-1.4, 1.4);
         let wi = f.t * th.sin() + f.n * th.cos();
         let lobe = ClothLobe { k: Vec3::new(0.7, 0.5, 0.3), beta: rng.range(0.02, 0.8), gamma: 0.0 };
-        for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+        for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
             let (eta, a) = (rng.range(1.0, 2.0), rng.range(0.0, 3.0));
             let facing = cloth_lobe(&lobe, eta, a, &f, wi, wo, reading) * f.n.dot(wi).max(0.0);
             let cylinder = cloth_cylinder_lobe(&lobe, eta, a, &f, wi, wo, reading);
@@ -255,7 +292,7 @@ fn a_fibre_across_a_mirror_view_shines_as_a_cylinder_and_not_as_a_facing_surface
     let t = 55f32.to_radians();
     let (wi, wo) = (Vec3::new(0.0, t.sin(), t.cos()), Vec3::new(0.0, -t.sin(), t.cos()));
     let f = cloth_fiber_frame(Vec3::X, wo);
-    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+    for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
         assert_eq!(cloth_lobe(&lobe, 1.5, 1.0, &f, wi, wo, reading) * f.n.dot(wi).max(0.0), Vec3::ZERO);
         let c = (0.5 * 110f32.to_radians()).cos();
         let want = cloth_gaussian(0.0, 0.1) * cloth_fresnel(1.5, 1.0) * c * c;

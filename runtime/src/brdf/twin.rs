@@ -209,7 +209,7 @@ pub fn extreme_inputs() -> Vec<BrdfEvalInput> {
                 let lobes = lobe_sets[(which / 2) % lobe_sets.len()];
                 let kd = if which % 3 == 0 { Vec3::splat(1e30) } else { Vec3::new(0.2, 0.1, 0.05) };
                 let p = ClothParams::new(kd, eta, a, lobes);
-                for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+                for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
                     out.push(BrdfEvalInput::new(n, t, wi, wo, &p, reading));
                 }
             }
@@ -230,7 +230,11 @@ pub fn generate_inputs(count: usize, seed: u64) -> Vec<BrdfEvalInput> {
         let wi = rng.unit_vector();
         let wo = if rng.next_f32() < 0.5 { near_specular(&mut rng, n, t, wi) } else { rng.unit_vector() };
         let p = random_params(&mut rng);
-        let reading = if rng.next_f32() < 0.5 { BrdfReading::Bounded } else { BrdfReading::Width };
+        let reading = match rng.next_u64() % 3 {
+            0 => BrdfReading::Bounded,
+            1 => BrdfReading::Width,
+            _ => BrdfReading::Held,
+        };
         out.push(BrdfEvalInput::new(n, t, wi, wo, &p, reading));
     }
     out
@@ -246,7 +250,7 @@ pub struct TestVector {
     pub kd: [f32; 3],
     pub eta: f32,
     pub a: f32,
-    /// "bounded" or "width".
+    /// "bounded", "width" or "held".
     pub reading: String,
     pub lobes: Vec<TestVectorLobe>,
     /// `cloth_brdf(params, cloth_frame(n, t), wi, wo, reading)`.

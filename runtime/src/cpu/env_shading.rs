@@ -79,7 +79,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, HELD_RISE, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -243,13 +243,20 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
         // a cylinder's half-angle cos(φ/2).
         let cs = if cylinder { cloth_half_cos(cp) } else { cp };
         // What of R depends on φ alone: the shadowing and the bounded reading's falloff
-        // (the width reading folds it into β').
-        let r_phi = k * (if through { 1.0 } else { cloth_shadowing(cs, a) } * if bounded { falloff } else { 1.0 });
+        // (the width and held readings fold it into β' = max(β·P, BETA_MIN); the held
+        // reading's height β'/max(β', β/HELD_RISE) as well).
+        let beta_eff = (beta * falloff).max(BETA_MIN);
+        let height = match reading {
+            BrdfReading::Bounded => falloff,
+            BrdfReading::Width => 1.0,
+            BrdfReading::Held => beta_eff / (beta / HELD_RISE).max(beta_eff),
+        };
+        let r_phi = k * (if through { 1.0 } else { cloth_shadowing(cs, a) } * height);
         if r_phi.max_element() <= 0.0 {
             continue;
         }
         if !bounded {
-            env_theta_cells(theta_c, (beta * falloff).max(BETA_MIN), k_theta, &ao, eta, &mut cells);
+            env_theta_cells(theta_c, beta_eff, k_theta, &ao, eta, &mut cells);
         }
         for cell in &cells[..k_theta] {
             if !(cell.mass > 0.0) {
@@ -459,7 +466,7 @@ mod tests {
             (ClothLobe { k: Vec3::ONE, beta: 0.8, gamma: 0.0 }, Vec3::new(-0.3, 0.4, 0.9), Vec3::new(1.0, 1.0, 0.0)),
         ];
         for (ci, (lobe, n, t)) in cases.into_iter().enumerate() {
-            for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+            for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
                 for wo in [direction_from_angles(10.0, 0.0), direction_from_angles(50.0, 70.0), direction_from_angles(75.0, 200.0)] {
                     let b = texel(Vec3::ZERO, &[lobe], n, t);
                     let exact = texel_env_response_quadrature(&b, wo, reading, false, DiffuseLaw::Lambert, &env_map, 600).x;
@@ -546,7 +553,7 @@ mod tests {
         for (beta, gamma) in [(BETA_MIN, 0.0), (BETA_MAX, 0.0), (BETA_MIN, crate::brdf::GAMMA_MIN), (1.0, crate::brdf::GAMMA_MAX), (-5.0, -1.0), (f32::NAN, f32::NAN)] {
             for (n, t) in frames {
                 for wo in [Vec3::Z, Vec3::new(1.0, 0.0, 1e-4).normalize(), direction_from_angles(89.9, 10.0)] {
-                    for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+                    for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
                         let b = texel(Vec3::splat(K_MAX), &[ClothLobe { k: Vec3::splat(K_MAX), beta, gamma }], n, t);
                         let r = texel_env_response(&b, wo, reading, true, DiffuseLaw::LommelSeeliger, EnvBudget::SURFACE, &env);
                         assert!(r.is_finite() && r.min_element() >= 0.0, "β {beta} γ {gamma} n {n} ω_o {wo}: {r}");
@@ -584,7 +591,11 @@ mod tests {
             let lobes: Vec<ClothLobe> = (0..1 + case % 3).map(|_| ClothLobe { k: Vec3::new(0.5 + rnd(), 0.5 + rnd(), 0.5 + rnd()), beta: 0.03 + 0.6 * rnd() * rnd(), gamma: if rnd() < 0.5 { 0.0 } else { 0.2 + 1.5 * rnd() } }).collect();
             let mut b = texel(Vec3::splat(0.05 * rnd()), &lobes, n, t);
             let wo = direction_from_angles(70.0 * rnd(), 360.0 * rnd());
-            let reading = if case % 4 == 3 { BrdfReading::Width } else { BrdfReading::Bounded };
+            let reading = match case % 8 {
+                3 => BrdfReading::Width,
+                7 => BrdfReading::Held,
+                _ => BrdfReading::Bounded,
+            };
             let mut volumetric = case % 2 == 0;
             let mut diffuse = if case % 3 == 1 { DiffuseLaw::LommelSeeliger } else { DiffuseLaw::Lambert };
             if cylinder {
@@ -642,7 +653,7 @@ mod tests {
         let env = PrefilteredEnv::new(&env_map);
         let mut worst = (0.0f32, 0.0f32);
         for (beta, axis) in [(0.05, Vec3::X), (0.3, Vec3::new(1.0, 1.0, 0.3)), (0.8, Vec3::new(0.2, -1.0, 0.6)), (0.15, Vec3::Z)] {
-            for reading in [BrdfReading::Bounded, BrdfReading::Width] {
+            for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
                 for wo in [direction_from_angles(10.0, 0.0), direction_from_angles(50.0, 70.0), direction_from_angles(75.0, 200.0)] {
                     let lobe = ClothLobe { k: Vec3::ONE, beta, gamma: 0.7 };
                     let b = super::super::shading::in_fiber_frame(texel(Vec3::ZERO, &[lobe], Vec3::Z, Vec3::X), axis, wo, crate::brdf::FiberLobes::Cylinder);

@@ -51,6 +51,8 @@ pub const GPU_FLAG_FIBER_CYLINDER: u32 = 32;
 /// The flyaways in front of a surface hit shadow its lights
 /// ([`crate::hybrid::BakeMetadata::flyaway_shadow`]).
 pub const GPU_FLAG_FLYAWAY_SHADOW: u32 = 64;
+/// The BRDFs use the held reading ([`crate::brdf::BrdfReading::Held`], format 1.14).
+pub const GPU_FLAG_READING_HELD: u32 = 128;
 
 /// [`GpuLevel::surface`]: per texel a frame and a cluster index.
 pub const GPU_SURFACE_CLUSTERED: u32 = 0;
@@ -186,6 +188,7 @@ impl GpuModel {
             | if m.volumetric { GPU_FLAG_VOLUMETRIC } else { 0 }
             | if m.coarse_visibility { GPU_FLAG_COARSE_VISIBILITY } else { 0 }
             | if m.reading == crate::brdf::BrdfReading::Width { GPU_FLAG_READING_WIDTH } else { 0 }
+            | if m.reading == crate::brdf::BrdfReading::Held { GPU_FLAG_READING_HELD } else { 0 }
             | if m.diffuse == crate::brdf::DiffuseLaw::LommelSeeliger { GPU_FLAG_DIFFUSE_LS } else { 0 }
             | if m.fiber_lobes == crate::brdf::FiberLobes::Cylinder { GPU_FLAG_FIBER_CYLINDER } else { 0 }
             | if m.flyaway_shadow { GPU_FLAG_FLYAWAY_SHADOW } else { 0 };
@@ -500,5 +503,36 @@ impl GpuEnv {
         push(2 * GPU_ENV_LEVELS + 1, &env.irradiance_full);
         let (sin, cos) = env.map.rotate_deg().to_radians().sin_cos();
         Some(GpuEnv { texels, info: [env.levels.len() as u32, background as u32, env.lights_below() as u32, 0], frame: [cos, sin, env.sigma0, 0.0], levels })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{BrdfReading, HELD_RISE};
+
+    #[test]
+    fn the_flags_and_readings_are_the_shaders() {
+        let model = include_str!("../../../shaders/common/model.glsl");
+        let flags = [
+            ("PERIODIC", GPU_FLAG_PERIODIC),
+            ("VOLUMETRIC", GPU_FLAG_VOLUMETRIC),
+            ("COARSE_VISIBILITY", GPU_FLAG_COARSE_VISIBILITY),
+            ("READING_WIDTH", GPU_FLAG_READING_WIDTH),
+            ("DIFFUSE_LS", GPU_FLAG_DIFFUSE_LS),
+            ("FIBER_CYLINDER", GPU_FLAG_FIBER_CYLINDER),
+            ("FLYAWAY_SHADOW", GPU_FLAG_FLYAWAY_SHADOW),
+            ("READING_HELD", GPU_FLAG_READING_HELD),
+        ];
+        for (name, value) in flags {
+            assert!(model.contains(&format!("#define GPU_FLAG_{name} {value}u\n")), "GPU_FLAG_{name} = {value} in model.glsl");
+        }
+        assert_eq!(flags.iter().fold(0, |acc, f| acc | f.1).count_ones() as usize, flags.len(), "one bit each");
+        let brdf = include_str!("../../../shaders/brdf.glsl");
+        for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
+            let name = reading.name().to_uppercase();
+            assert!(brdf.contains(&format!("#define CLOTH_READING_{name} {}u\n", reading as u32)), "CLOTH_READING_{name}");
+        }
+        assert!(brdf.contains(&format!("const float CLOTH_HELD_RISE = {HELD_RISE:.1};\n")));
     }
 }

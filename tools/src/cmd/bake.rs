@@ -60,6 +60,7 @@ pub enum FlyawayShadowArg {
 pub enum ReadingArg {
     Bounded,
     Width,
+    Held,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -121,8 +122,9 @@ pub struct BakeArgs {
     /// Search η per cluster instead of fixing it.
     #[arg(long)]
     pub fit_eta: bool,
-    /// Reading of the printed Eqs. 2–3.
-    #[arg(long, value_enum, default_value = "width")]
+    /// Reading of the printed Eqs. 2–3: `held` (format 1.14) is `width` with each lobe's
+    /// height held to at most 4 times its peak where the azimuthal falloff narrows it.
+    #[arg(long, value_enum, default_value = "held")]
     pub reading: ReadingArg,
     /// The surface's diffuse law: Lambert's k_d·max(n·ω_i, 0), or Lommel–Seeliger's
     /// k_d·max(n·ω_i, 0)·2/(μ_i + μ_o), μ the cosines to the tile's normal (format 1.6;
@@ -261,6 +263,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.fit.reading = match args.reading {
         ReadingArg::Bounded => BrdfReading::Bounded,
         ReadingArg::Width => BrdfReading::Width,
+        ReadingArg::Held => BrdfReading::Held,
     };
     options.fit.diffuse = match args.diffuse {
         DiffuseArg::Lambert => DiffuseLaw::Lambert,

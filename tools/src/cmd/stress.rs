@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use fabric_runtime::brdf::twin::{BrdfEvalInput, BrdfEvalOutput, SplitMix64, generate_inputs};
-use fabric_runtime::brdf::{BETA_MIN, ClothLobe, K_MAX};
+use fabric_runtime::brdf::{BETA_MIN, BrdfReading, ClothLobe, HELD_RISE, K_MAX};
 use fabric_runtime::cpu::{CpuRenderOptions, ShadowMode, render};
 use fabric_runtime::gpu::HybridPass;
 use fabric_runtime::hybrid::{examples, format};
@@ -18,12 +18,17 @@ use fabric_runtime::vk::{BindingKind, Buffer, DescriptorSet, DescriptorSetLayout
 use glam::Vec3;
 
 /// The largest value an input's outputs can take: k_d + Σ k_j/(√(2π)·β), β the lobe's
-/// width (bounded reading) or BETA_MIN (the width reading narrows it that far).
+/// width (bounded reading), that width over HELD_RISE (the held reading lets the lobe rise
+/// that far) or BETA_MIN (the width reading narrows it that far).
 fn bound(input: &BrdfEvalInput) -> f32 {
     let p = input.params();
     let kd = p.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX)).max_element();
     let peak = |l: &ClothLobe| {
-        let beta = if input.reading == 1 { BETA_MIN } else { l.beta.clamp(BETA_MIN, 1e4) };
+        let beta = match input.reading() {
+            BrdfReading::Width => BETA_MIN,
+            BrdfReading::Held => (l.beta.clamp(BETA_MIN, 1e4) / HELD_RISE).max(BETA_MIN),
+            BrdfReading::Bounded => l.beta.clamp(BETA_MIN, 1e4),
+        };
         l.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX)).max_element() * 0.398_942_3 / beta
     };
     1.0001 * (kd + p.lobes().iter().map(peak).sum::<f32>())

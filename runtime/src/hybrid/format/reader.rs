@@ -235,7 +235,7 @@ fn parse_model_section(index: usize, b: &[u8]) -> Result<ModelHeader, FormatErro
     if levels == 0 || levels as usize > max {
         return Err(bad(format!("{levels} levels; a {width}x{height} model has 1..={max}")));
     }
-    let reading = BrdfReading::from_u32(u32_at(b, 12)).ok_or_else(|| bad(format!("BRDF reading {} is unknown (0 = bounded, 1 = width)", u32_at(b, 12))))?;
+    let reading = BrdfReading::from_u32(u32_at(b, 12)).ok_or_else(|| bad(format!("BRDF reading {} is unknown (0 = bounded, 1 = width, 2 = held)", u32_at(b, 12))))?;
     let flags = u32_at(b, 16);
     if flags & !(MODEL_FLAG_SHADOWING | MODEL_FLAG_VOLUMETRIC | MODEL_FLAG_COARSE_VISIBILITY | MODEL_FLAG_DIFFUSE_LS | MODEL_FLAG_FIBER_CYLINDER | MODEL_FLAG_FLYAWAY_SHADOW) != 0 {
         return Err(bad(format!("unknown flags {flags:#x}")));

@@ -1,0 +1,74 @@
+//! How far a model's level-0 texels rise above the sheet at directions no pair measured:
+//! every texel's response (`cpu::shading::texel_response`, no visibility) at 40 000
+//! direction pairs, ω_i and ω_o each from a spiral of 400 directions up to 70° from the
+//! normal (ω_i every fourth); per pair the brightest texel against the sheet's 99th
+//! percentile, and the brightest response of all with its texel's lobes. A lobe the fit
+//! never saw near its top shows here as a needle (baker/FIT_MEASUREMENTS.md, "The held
+//! reading").
+//!
+//! `cargo run --release -p fabric-baker --example lobe_peaks MODEL.hyb...`
+
+use std::path::Path;
+
+use fabric_runtime::brdf::{cloth_angles, cloth_lobe_shape};
+use fabric_runtime::cpu::shading::texel_response;
+use fabric_runtime::hybrid::format;
+use glam::Vec3;
+use rayon::prelude::*;
+
+fn main() {
+    let spiral: Vec<Vec3> = (0..400)
+        .map(|k| {
+            let z = 1.0 - (k as f32 + 0.5) / 400.0 * (1.0 - 70f32.to_radians().cos());
+            let (r, phi) = ((1.0 - z * z).sqrt(), k as f32 * 2.399_963);
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect();
+    let pairs: Vec<(Vec3, Vec3)> = spiral.iter().step_by(4).flat_map(|&wi| spiral.iter().map(move |&wo| (wi, wo))).collect();
+    for path in std::env::args().skip(1) {
+        let model = format::read_file(Path::new(&path)).expect("read the model");
+        let level = &model.levels[0];
+        let brdfs: Vec<_> = (0..level.height).flat_map(|j| (0..level.width).map(move |i| (i, j))).map(|(i, j)| level.texel_brdf(i, j)).collect();
+        let (reading, diffuse) = (model.meta.reading, model.meta.diffuse);
+        // Per pair: (brightest / p99, brightest, its texel).
+        let per_pair: Vec<(f32, f32, usize)> = pairs
+            .par_iter()
+            .map(|&(wi, wo)| {
+                let r: Vec<f32> = brdfs.iter().map(|b| texel_response(b, wi, wo, reading, diffuse).length()).collect();
+                let mut sorted = r.clone();
+                sorted.sort_by(|a, b| a.total_cmp(b));
+                let p99 = sorted[sorted.len() * 99 / 100].max(1e-6);
+                let (t, top) = r.iter().enumerate().fold((0, 0.0f32), |best, (t, &v)| if v > best.1 { (t, v) } else { best });
+                (top / p99, top, t)
+            })
+            .collect();
+        let mut ratios: Vec<f32> = per_pair.iter().map(|p| p.0).collect();
+        ratios.sort_by(|a, b| a.total_cmp(b));
+        let n = ratios.len();
+        let (k, &(_, top, t)) = per_pair.iter().enumerate().max_by(|a, b| a.1.1.total_cmp(&b.1.1)).expect("pairs");
+        println!(
+            "{path} ({} reading): brightest texel / the sheet's 99th percentile over {n} pairs: median {:.2}, 99th percentile {:.1}, most {:.0}; pairs above 10x: {}",
+            reading.name(),
+            ratios[n / 2],
+            ratios[n * 99 / 100],
+            ratios[n - 1],
+            ratios.iter().filter(|r| **r > 10.0).count()
+        );
+        let (wi, wo) = pairs[k];
+        let b = &brdfs[t];
+        println!("  brightest response {top:.2} (texel {t}, ω_i {wi:.2}, ω_o {wo:.2}); its lobes:");
+        for (l, f) in b.params.lobes().iter().zip(&b.frames) {
+            let (ai, ao) = (cloth_angles(f, wi), cloth_angles(f, wo));
+            println!(
+                "    k {:.2} β {:.3} γ {:.3}: θ_i + θ_o {:.3}, φ_i + φ_o {:.2}, S {:.1} (its peak G(0; β) {:.1})",
+                l.k,
+                l.beta,
+                l.gamma,
+                ai.theta + ao.theta,
+                ai.phi + ao.phi,
+                cloth_lobe_shape(ai.theta + ao.theta, ai.phi + ao.phi, l.beta, l.gamma, reading),
+                fabric_runtime::brdf::cloth_gaussian(0.0, l.beta)
+            );
+        }
+    }
+}
