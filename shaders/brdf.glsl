@@ -246,6 +246,12 @@ float cloth_phi_falloff(float x, float gamma) {
     return exp(-(x * x) / (2.0 * gamma * gamma));
 }
 
+// The held reading's height factor for a lobe of width beta narrowed to w:
+// w / max(w, beta / HELD_RISE) (1 where the lobe rises less than HELD_RISE times its peak).
+float cloth_held_height(float beta, float w) {
+    return w / max(beta / CLOTH_HELD_RISE, w);
+}
+
 // S_j at theta_i + theta_o = theta_sum, phi_i + phi_o = phi_sum: where the readings differ.
 float cloth_lobe_shape(float theta_sum, float phi_sum, float beta, float gamma, uint reading) {
     if (reading == CLOTH_READING_WIDTH) {
@@ -255,8 +261,7 @@ float cloth_lobe_shape(float theta_sum, float phi_sum, float beta, float gamma, 
     if (reading == CLOTH_READING_HELD) {
         beta = min(max(beta, CLOTH_BETA_MIN), CLOTH_BETA_MAX);
         float w = max(beta * cloth_phi_falloff(phi_sum, gamma), CLOTH_BETA_MIN);
-        // The width reading's Gaussian, its normalization 1/w held at 1/(beta/HELD_RISE).
-        return cloth_gaussian(theta_sum, w) * (w / max(beta / CLOTH_HELD_RISE, w));
+        return cloth_gaussian(theta_sum, w) * cloth_held_height(beta, w);
     }
     return cloth_gaussian(theta_sum, beta) * cloth_phi_falloff(phi_sum, gamma);
 }

@@ -166,9 +166,9 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
         float pf = cylinder ? 1.0 : cloth_phi_falloff(phi + ao.phi, lobe.gamma);
         float cs = cylinder ? cloth_half_cos(cp) : cp;
         // The width and held readings fold P into beta' (the held reading's height
-        // beta'/max(beta', beta/HELD_RISE) as well).
+        // cloth_held_height, as well).
         float beta_eff = max(beta * pf, CLOTH_BETA_MIN);
-        float height = bounded ? pf : (reading == CLOTH_READING_HELD ? beta_eff / max(beta / CLOTH_HELD_RISE, beta_eff) : 1.0);
+        float height = bounded ? pf : (reading == CLOTH_READING_HELD ? cloth_held_height(beta, beta_eff) : 1.0);
         vec3 r_phi = k * ((through ? 1.0 : cloth_shadowing(cs, a)) * height);
         if (max(max(r_phi.x, r_phi.y), r_phi.z) <= 0.0) {
             continue;

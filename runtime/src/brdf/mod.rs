@@ -383,6 +383,14 @@ pub fn cloth_phi_falloff(x: f32, gamma: f32) -> f32 {
     (-(x * x) / (2.0 * gamma * gamma)).exp()
 }
 
+/// The held reading's height factor for a lobe of width β narrowed to w = max(β·P,
+/// BETA_MIN): w / max(w, β/HELD_RISE), so that G(x; w) times it never exceeds
+/// HELD_RISE · G(0; β) (1 where the lobe rises less than that).
+#[inline]
+pub fn cloth_held_height(beta: f32, w: f32) -> f32 {
+    w / (beta / HELD_RISE).max(w)
+}
+
 /// The shape S_j of one lobe at θ_i + θ_o = `theta_sum`, φ_i + φ_o = `phi_sum`, under
 /// any reading (the only place where the readings differ).
 #[inline]
@@ -396,9 +404,7 @@ pub fn cloth_lobe_shape(theta_sum: f32, phi_sum: f32, beta: f32, gamma: f32, rea
         BrdfReading::Held => {
             let beta = beta.max(BETA_MIN).min(BETA_MAX);
             let w = (beta * cloth_phi_falloff(phi_sum, gamma)).max(BETA_MIN);
-            // The width reading's Gaussian, its normalization 1/w held at 1/(β/HELD_RISE)
-            // once w falls below that.
-            cloth_gaussian(theta_sum, w) * (w / (beta / HELD_RISE).max(w))
+            cloth_gaussian(theta_sum, w) * cloth_held_height(beta, w)
         }
     }
 }

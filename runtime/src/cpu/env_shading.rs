@@ -79,7 +79,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, HELD_RISE, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_held_height, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -244,12 +244,12 @@ pub fn lobe_env_nodes(lobe: &ClothLobe, eta: f32, a: f32, f: &ClothFrame, wo: Ve
         let cs = if cylinder { cloth_half_cos(cp) } else { cp };
         // What of R depends on φ alone: the shadowing and the bounded reading's falloff
         // (the width and held readings fold it into β' = max(β·P, BETA_MIN); the held
-        // reading's height β'/max(β', β/HELD_RISE) as well).
+        // reading's height, cloth_held_height, as well).
         let beta_eff = (beta * falloff).max(BETA_MIN);
         let height = match reading {
             BrdfReading::Bounded => falloff,
             BrdfReading::Width => 1.0,
-            BrdfReading::Held => beta_eff / (beta / HELD_RISE).max(beta_eff),
+            BrdfReading::Held => cloth_held_height(beta, beta_eff),
         };
         let r_phi = k * (if through { 1.0 } else { cloth_shadowing(cs, a) } * height);
         if r_phi.max_element() <= 0.0 {
