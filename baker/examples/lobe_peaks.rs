@@ -6,11 +6,21 @@
 //! never saw near its top shows here as a needle (baker/FIT_MEASUREMENTS.md, "The held
 //! reading").
 //!
-//! `cargo run --release -p fabric-baker --example lobe_peaks MODEL.hyb...`
+//! With `--against FABRIC_DIR` before a model, the pairs where the model rises highest
+//! are also rendered (orthographic, texel-ordered, the bake's held-out measurement) from
+//! the volume and from the whole model, so a needle can be told from a glint the
+//! truth has too: the brightest pixel and the 99.9th percentile of each, and the error.
+//!
+//! `cargo run --release -p fabric-baker --example lobe_peaks [--against DIR] MODEL.hyb...`
 
 use std::path::Path;
 
+use fabric_baker::evaluate::{ViewKind, evaluate_view, reference_medium};
+use fabric_baker::fit::directions::{Pair, PairKind};
+use fabric_baker::reference::Lookup;
+use fabric_baker::volume::{MaterialOverrides, load_fabric};
 use fabric_runtime::brdf::{cloth_angles, cloth_lobe_shape};
+use fabric_runtime::image::Image;
 use fabric_runtime::cpu::shading::texel_response;
 use fabric_runtime::hybrid::format;
 use glam::Vec3;
@@ -25,7 +35,13 @@ fn main() {
         })
         .collect();
     let pairs: Vec<(Vec3, Vec3)> = spiral.iter().step_by(4).flat_map(|&wi| spiral.iter().map(move |&wo| (wi, wo))).collect();
-    for path in std::env::args().skip(1) {
+    let mut against: Option<String> = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(path) = args.next() {
+        if path == "--against" {
+            against = Some(args.next().expect("--against takes a fabric directory"));
+            continue;
+        }
         let model = format::read_file(Path::new(&path)).expect("read the model");
         let level = &model.levels[0];
         let brdfs: Vec<_> = (0..level.height).flat_map(|j| (0..level.width).map(move |i| (i, j))).map(|(i, j)| level.texel_brdf(i, j)).collect();
@@ -70,5 +86,46 @@ fn main() {
                 fabric_runtime::brdf::cloth_gaussian(0.0, l.beta)
             );
         }
+        if let Some(dir) = &against {
+            render_worst(dir, &model, &pairs, &per_pair);
+        }
+    }
+}
+
+/// The model's six highest pairs (by brightest response, at least 20° apart in ω_i or
+/// ω_o) rendered from the volume and the model, 64 spp.
+fn render_worst(dir: &str, model: &fabric_runtime::hybrid::HybridModel, pairs: &[(Vec3, Vec3)], per_pair: &[(f32, f32, usize)]) {
+    let volume = load_fabric(Path::new(dir), &MaterialOverrides::default()).expect("read the fabric");
+    let medium = reference_medium(&volume, Lookup::Trilinear).expect("medium");
+    let mut order: Vec<usize> = (0..pairs.len()).collect();
+    order.sort_by(|a, b| per_pair[*b].1.total_cmp(&per_pair[*a].1));
+    let far = 20f32.to_radians().cos();
+    let mut chosen: Vec<usize> = Vec::new();
+    for k in order {
+        let (wi, wo) = pairs[k];
+        if chosen.iter().all(|&c| pairs[c].0.dot(wi) < far || pairs[c].1.dot(wo) < far) {
+            chosen.push(k);
+        }
+        if chosen.len() == 6 {
+            break;
+        }
+    }
+    let stats = |im: &Image| {
+        let mut v: Vec<f32> = im.pixels.iter().map(|p| (p.x + p.y + p.z) / 3.0).collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        (v[v.len() - 1], v[v.len() * 999 / 1000])
+    };
+    for k in chosen {
+        let (wi, wo) = pairs[k];
+        let pair = Pair { wi, wo, kind: PairKind::Stratified };
+        let (e, images) = evaluate_view(&volume, &medium, model, &pair, ViewKind::Orthographic, model.width(), 64, 11 + k as u64, 0.0).expect("view");
+        let ((rmax, r999), (mmax, m999)) = (stats(&images.reference), stats(&images.model));
+        println!(
+            "  pair ω_i {wi:.2} ω_o {wo:.2} (texel response {:.2}): truth max {rmax:.3}, 99.9% {r999:.3}; model max {mmax:.3}, 99.9% {m999:.3}; 4x4 {:.1}%, px {:.1}%, mean ratio {:.3}",
+            per_pair[k].1,
+            100.0 * e.block_error,
+            100.0 * e.pixel_error,
+            e.mean_ratio
+        );
     }
 }

@@ -29,7 +29,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LobeTarget, Target, TargetRay, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
+use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LOBE_PEAK_MAX, LobeTarget, Target, TargetRay, cap_peaks, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
 use crate::fit::gradient::{GradientOptions, refine_gradient_from, with_gradient};
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
@@ -119,6 +119,10 @@ pub struct BakeOptions {
     pub prefilter: Option<PrefilterOptions>,
     /// Fit a transmission term too (a BSDF, format 1.3), or `None` for reflection alone.
     pub transmission: Option<TransmissionFitOptions>,
+    /// Bound each lobe (cluster and texel) to add at most this multiple of the brightest
+    /// radiance its cluster showed (training pixels and its representative's dense
+    /// values) at any pair of directions (`cluster_fit::LOBE_PEAK_MAX`); `None`: no bound.
+    pub lobe_peak_max: Option<f32>,
 }
 
 /// How the flyaways are clustered, covered and fitted.
@@ -219,6 +223,7 @@ impl Default for BakeOptions {
             flyaways: Some(FlyawayOptions::default()),
             prefilter: Some(PrefilterOptions::default()),
             transmission: None,
+            lobe_peak_max: Some(LOBE_PEAK_MAX),
         }
     }
 }
@@ -310,6 +315,13 @@ pub struct BakeReport {
     /// of their ridge (`cluster_fit::LOBE_SUPPORT_MIN`), of `cluster_lobes` in all.
     pub unseen_lobes: usize,
     pub cluster_lobes: usize,
+    /// The multiple of each cluster's brightest training radiance that bounds what one
+    /// lobe adds anywhere (`cluster_fit::LOBE_PEAK_MAX`; none: unbounded), the cluster
+    /// lobes the fit held at that bound, and the texel lobes lowered to it after the
+    /// per-texel refinement.
+    pub lobe_peak_max: Option<f32>,
+    pub peak_capped_lobes: usize,
+    pub texel_lobes_peak_capped: usize,
     pub flyaways: Option<FlyawayReport>,
     /// The mip chain's figures per level (fit error, lobes, bytes, time).
     pub prefilter: Option<PrefilterReport>,
@@ -645,8 +657,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut dense_values: Vec<Vec3> = Vec::new();
     let dense_seed = mix64(options.seed ^ 0x6d65_6173);
     let mut rounds: Vec<KRound> = Vec::new();
-    // (training error, clusters, fits, predictions) of the best round so far.
-    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<Vec<FrameOffset>>, Vec<Image>);
+    // (training error, clusters, fits, frame offsets, predictions, lobe peak bounds) of
+    // the best round so far.
+    type Round = (f64, Vec<u32>, Vec<ClusterFit>, Vec<Vec<FrameOffset>>, Vec<Image>, Vec<Option<Vec3>>);
     // The clustered encoding holds one frame per texel: lobes of their own need the
     // per-texel one.
     let frame_fit = options.frame_fit.clone().map(|f| FrameFitOptions { per_lobe: f.per_lobe && options.per_texel_ridge.is_some(), ..f });
@@ -694,6 +707,16 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 t.1.push(ray_of(s));
             }
         }
+        // Each cluster's bound on what one lobe may add (`cluster_fit::LOBE_PEAK_MAX`):
+        // the brightest the volume showed of it, in training pixels and dense values.
+        let bounds: Vec<Option<Vec3>> = (0..k)
+            .map(|c| {
+                options.lobe_peak_max.map(|m| {
+                    let trained = by_cluster.group(c).iter().map(|&i| target_of(&samples[i as usize]));
+                    m * trained.chain(dense_targets[c].0.iter().map(|t| t.radiance)).fold(Vec3::ZERO, Vec3::max)
+                })
+            })
+            .collect();
         let bar = begin_stage(progress, format!("K = {k}: fitting"), k as u64);
         let (fits, offsets): (Vec<ClusterFit>, Vec<Vec<FrameOffset>>) = dense_targets
             .into_par_iter()
@@ -709,9 +732,10 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 }
                 t.extend(dense_t);
                 r.extend(dense_r);
+                let o = ClusterFitOptions { peak_bound: bounds[c], ..options.fit.clone() };
                 let f = match &frame_fit {
-                    Some(fo) => fit_cluster_framed(&t, &r, &base_frames, &dirs, &options.fit, fo),
-                    None => (fit_cluster(&t, &options.fit), vec![FrameOffset::IDENTITY]),
+                    Some(fo) => fit_cluster_framed(&t, &r, &base_frames, &dirs, &o, fo),
+                    None => (fit_cluster(&t, &o), vec![FrameOffset::IDENTITY]),
                 };
                 bar.advance(1);
                 f
@@ -731,7 +755,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let improved = best.as_ref().is_none_or(|b| error < b.0);
         let gain = best.as_ref().map_or(1.0, |b| (b.0 - error) / b.0.max(1e-30));
         if improved {
-            best = Some((error, cluster.clone(), fits, offsets, predictions));
+            best = Some((error, cluster.clone(), fits, offsets, predictions, bounds));
         }
         if error < options.delta.max(training.noise) || gain < options.min_gain || k >= k_max.min(texels) {
             break;
@@ -739,7 +763,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         k = (2 * k).min(k_max).min(texels);
     }
     stage("clustering and fitting", t_fit);
-    let (cluster_error, clusters, fits, offsets, predictions) = best.expect("at least one round");
+    let (cluster_error, clusters, fits, offsets, predictions, bounds) = best.expect("at least one round");
     // The texels' frames as fitted (each cluster's offset applied): what level 0 stores.
     let frames = offset_frames(&base_frames, &clusters, &offsets);
     let lobe0_frames: Vec<ClothFrame> = frames.iter().map(|f| f[0]).collect();
@@ -758,32 +782,40 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     let mut energy = EnergyReport { lobe_albedo_max: LOBE_ALBEDO_MAX, worst_cluster_albedo, clusters_capped, ..Default::default() };
     let mut texel_gradients: Option<Vec<[f32; 4]>> = None;
     let mut gradient_report: Option<GradientReport> = None;
+    let mut texel_lobes_peak_capped = 0;
     let (texel_params, predictions, error, block_error) = match options.per_texel_ridge {
         Some(ridge) => {
             let bar = begin_stage(progress, "per-texel refinement", 1);
             // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
             let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
-            let refined: Vec<(ClothParams, f32, [f32; 4], Option<ClothParams>)> = (0..texels)
+            let refined: Vec<(ClothParams, f32, [f32; 4], Option<ClothParams>, u32)> = (0..texels)
                 .into_par_iter()
                 .map(|j| {
                     let texel_samples = by_texel.group(j).iter().map(|&i| &samples[i as usize]);
                     let t: Vec<LobeTarget> = texel_samples.clone().map(|s| LobeTarget { radiance: target_of(s) * pw(s), ..geo_of(&weighted(s)) }).collect();
                     let c = clusters[j] as usize;
-                    let first = refine_texel(&t, &params[c], ridge, options.fit.reading);
+                    // A texel's lobes bounded as its cluster's were (the same β, γ).
+                    let peak = |p: ClothParams| match bounds[c] {
+                        Some(b) => cap_peaks(&p, b, options.fit.reading),
+                        None => (p, 0),
+                    };
+                    let (first, lowered_first) = peak(refine_texel(&t, &params[c], ridge, options.fit.reading));
                     let plain = cap_lobes(&first, &unit[c]);
                     match &options.gradient {
                         Some(go) => {
                             let pairs: Vec<(Vec3, Vec3)> = texel_samples.map(|s| dirs[s.dirs as usize]).collect();
                             let (p, g) = refine_gradient_from(first, &t, &pairs, &params[c], ridge, go, options.fit.reading);
+                            let (p, lowered) = peak(p);
                             let (p, albedo) = cap_lobes(&p, &unit[c]);
-                            (p, albedo, g, Some(plain.0))
+                            (p, albedo, g, Some(plain.0), lowered)
                         }
-                        None => (plain.0, plain.1, [0.0; 4], None),
+                        None => (plain.0, plain.1, [0.0; 4], None, lowered_first),
                     }
                 })
                 .collect();
             let albedos: Vec<f32> = refined.iter().map(|r| r.1).collect();
             (energy.worst_texel_albedo, energy.texels_capped) = albedo_summary(&albedos);
+            texel_lobes_peak_capped = refined.iter().map(|r| r.4 as usize).sum();
             drop(by_texel);
             if options.gradient.is_some() {
                 // What the gradient bought: the training error of the refinement without it.
@@ -988,6 +1020,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         energy,
         gradient: gradient_report,
         unseen_lobes: fits.iter().map(|f| f.unseen_lobes as usize).sum(),
+        lobe_peak_max: options.lobe_peak_max,
+        peak_capped_lobes: fits.iter().map(|f| f.peak_capped_lobes as usize).sum(),
+        texel_lobes_peak_capped,
         cluster_lobes: fits.iter().map(|f| f.params.lobe_count as usize).sum(),
         flyaways: flyaway_report,
         prefilter: prefilter_report,

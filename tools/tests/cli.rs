@@ -226,7 +226,7 @@ fn hybrid_models_render_on_the_gpu_and_the_cpu_alike_and_inspect() {
 #[test]
 fn bake_refuses_bad_input_with_a_clear_error() {
     let out = tmp("never.hyb");
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 12] = [
         (&["bake", "/nonexistent/fabric"], "cannot load the fabric volume"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--openness-rays", "100000"], "openness_rays"),
         (&["bake", "/nonexistent/fabric", "--bsdf", "--tau-max", "99"], "--tau-max"),
@@ -236,6 +236,8 @@ fn bake_refuses_bad_input_with_a_clear_error() {
         (&["bake", "/nonexistent/fabric", "--normal-detail", "nan"], "--normal-detail"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "90"], "--held-out-turn"),
         (&["bake", "/nonexistent/fabric", "--held-out-turn", "nan"], "--held-out-turn"),
+        (&["bake", "/nonexistent/fabric", "--lobe-peak-max", "0.5"], "--lobe-peak-max"),
+        (&["bake", "/nonexistent/fabric", "--lobe-peak-max", "inf"], "--lobe-peak-max"),
         (&["bake", "/nonexistent/fabric", "--eta", "1"], "Fresnel"),
     ];
     for (args, says) in cases {

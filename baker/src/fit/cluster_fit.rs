@@ -21,10 +21,11 @@
 //! `cloth_shadowing`, `cloth_fresnel`), never a copy.
 
 use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothParams, DiffuseLaw, K_MAX, cloth_fresnel, cloth_lobe_shape, cloth_shadowing};
+use std::f32::consts::TAU;
 use glam::Vec3;
 
 use super::frames::FrameOffset;
-use super::nnls::nnls_gram;
+use super::nnls::{nnls_gram, nnls_gram_capped};
 use super::samples::Geo;
 use super::simplex::{NelderMead, nelder_mead_restarts};
 
@@ -52,6 +53,11 @@ pub struct ClusterFitOptions {
     /// Samples used by the search (a deterministic stride over the cluster's samples);
     /// the final linear solve uses all of them.
     pub search_samples: usize,
+    /// The most radiance (per channel) any one lobe may add at any pair of directions:
+    /// each lobe's k is bounded to it over [`lobe_peak`]; `None` leaves k unbounded. The
+    /// bake sets it per cluster to [`LOBE_PEAK_MAX`] times the brightest radiance the
+    /// cluster's texels showed in the training images.
+    pub peak_bound: Option<Vec3>,
 }
 
 impl Default for ClusterFitOptions {
@@ -73,6 +79,7 @@ impl Default for ClusterFitOptions {
             max_evals: 400,
             restarts: 2,
             search_samples: 6000,
+            peak_bound: None,
         }
     }
 }
@@ -188,6 +195,8 @@ pub struct ClusterFit {
     /// Lobes held at k = 0 because no sample came near their ridge
     /// ([`LOBE_SUPPORT_MIN`]) in the final solve.
     pub unseen_lobes: u32,
+    /// Lobes whose k sits at its peak bound ([`LOBE_PEAK_MAX`]) in the final solve.
+    pub peak_capped_lobes: u32,
     /// Why the fit fell back (no samples, non-finite data), if it did.
     pub problem: Option<String>,
 }
@@ -313,12 +322,74 @@ fn normal_equations<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamm
     e
 }
 
+/// How far above the brightest radiance its cluster showed a lobe may rise anywhere
+/// (the bake's default `peak_bound`): k_j · [`lobe_peak`] ≤ LOBE_PEAK_MAX · brightest,
+/// per channel.
+///
+/// Why: [`LOBE_SUPPORT_MIN`] keeps a lobe that no sample sees within three widths of
+/// its ridge out of the fit, but one seen at a few percent of its top still gets the k
+/// that its seen tail asks for, and its top — where no pair looked — can then be tens of
+/// times brighter than anything the volume shows. Measured on the default bakes at 64²
+/// (`baker/examples/lobe_peaks`: the volume rendered at the pairs where the model rises
+/// highest): satin's and silk's brightest pixels there were 8–50 times the truth's, and
+/// at most 2 times with the bound. 4 rather than 2: at 2 the bound also clips silk's
+/// real glints (held-out 24.1 → 25.8%) and twill's (12.0 → 12.4%); at 4 it touches
+/// 2–4 cluster lobes of 256 and no held-out view loses (baker/FIT_MEASUREMENTS.md, "A
+/// bound on a lobe's peak").
+pub const LOBE_PEAK_MAX: f32 = 4.0;
+
+/// The most lobe (β, γ) can add to a sample's radiance per unit k along its ridge
+/// θ_o = −θ_i: max S_j(0, φ_i + φ_o) over the azimuth sums times max F(η, μ)·μ over μ
+/// (there cos θ_d = cos θ_i = μ, and max(n·ω_i, 0) ≤ cos θ_i for a tangent in the
+/// surface; the shadowing is at most 1). Sampled: 129 azimuth sums in [0, 2π] and 64 μ
+/// in (0, 1]. Off the ridge a broad lobe can add a little more (F·cos θ_i peaks
+/// elsewhere): up to 10% at β = 0.4 and 27% at β = 1, nothing for the sharp lobes the
+/// bound is for (the test below).
+pub fn lobe_peak(beta: f32, gamma: f32, eta: f32, reading: BrdfReading) -> f32 {
+    let shape = (0..=128).map(|i| cloth_lobe_shape(0.0, TAU * i as f32 / 128.0, beta, gamma, reading)).fold(0.0f32, f32::max);
+    let fresnel_mu = (1..=64).map(|i| i as f32 / 64.0).map(|mu| cloth_fresnel(eta, mu) * mu).fold(0.0f32, f32::max);
+    shape * fresnel_mu
+}
+
+/// Per channel, the bound of each basis coefficient ([k_d, k_1, …]) that keeps every
+/// lobe below `bound`; k_d unbounded (its term is the radiance the samples see at every
+/// pair).
+fn lobe_peak_caps(bound: Vec3, beta: &[f32], gamma: &[f32], eta: f32, reading: BrdfReading) -> [Vec<f64>; 3] {
+    let peaks: Vec<f32> = beta.iter().zip(gamma).map(|(b, g)| lobe_peak(*b, *g, eta, reading)).collect();
+    std::array::from_fn(|ch| {
+        std::iter::once(f64::INFINITY)
+            .chain(peaks.iter().map(|p| if *p > 0.0 { (bound[ch].max(0.0) / p) as f64 } else { f64::INFINITY }))
+            .collect()
+    })
+}
+
+/// `p` with each lobe's k bounded as the cluster fit bounds it (`peak_bound`): for a
+/// texel refined on its own samples from its cluster's BRDF. Returns the BRDF and how
+/// many lobes were lowered.
+pub fn cap_peaks(p: &ClothParams, bound: Vec3, reading: BrdfReading) -> (ClothParams, u32) {
+    let mut out = *p;
+    let mut lowered = 0;
+    for lobe in out.lobes.iter_mut().take(p.lobes().len()) {
+        let peak = lobe_peak(lobe.beta, lobe.gamma, p.eta, reading);
+        if peak > 0.0 {
+            let cap = bound.max(Vec3::ZERO) / peak;
+            if lobe.k.cmpgt(cap).any() {
+                lobe.k = lobe.k.min(cap);
+                lowered += 1;
+            }
+        }
+    }
+    (out, lowered)
+}
+
 /// What [`solve_linear`] found: coefficients [channel][basis], Σ residual², and how many
 /// lobes it held at k = 0 because the samples never came near them.
 struct LinearSolve {
     coefficients: [Vec<f64>; 3],
     residual2: f64,
     unseen: u32,
+    /// Lobes held at their peak bound ([`LOBE_PEAK_MAX`]) in some channel.
+    capped: u32,
 }
 
 /// Solves the linear parameters for fixed non-linear ones: per channel NNLS on the Gram
@@ -329,14 +400,25 @@ fn solve_linear<T: Sampled>(samples: &[T], stride: usize, beta: &[f32], gamma: &
     e.drop_unsupported();
     let unseen = e.support.iter().filter(|s| **s < LOBE_SUPPORT_MIN).count() as u32;
     let NormalEquations { n, gram, atb, btb, .. } = e;
+    let caps = o.peak_bound.map(|b| lobe_peak_caps(b, beta, gamma, eta, o.reading));
     let mut residual = 0.0;
     let mut coefficients: [Vec<f64>; 3] = Default::default();
+    let mut at_cap = vec![false; n];
     for ch in 0..3 {
-        let sol = nnls_gram(&gram, &atb[ch], btb[ch], n).ok()?;
+        let sol = match &caps {
+            Some(caps) => nnls_gram_capped(&gram, &atb[ch], btb[ch], n, &caps[ch]).ok()?,
+            None => nnls_gram(&gram, &atb[ch], btb[ch], n).ok()?,
+        };
+        if let Some(caps) = &caps {
+            for (j, (x, c)) in sol.x.iter().zip(&caps[ch]).enumerate() {
+                at_cap[j] |= c.is_finite() && *x >= *c && *x > 0.0;
+            }
+        }
         residual += sol.residual2;
         coefficients[ch] = sol.x;
     }
-    residual.is_finite().then_some(LinearSolve { coefficients, residual2: residual, unseen })
+    let capped = at_cap.iter().filter(|c| **c).count() as u32;
+    residual.is_finite().then_some(LinearSolve { coefficients, residual2: residual, unseen, capped })
 }
 
 /// The model's radiance for one sample under BRDF `p` (its first lobes, η and a as
@@ -403,7 +485,7 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     // A failed fit is black, reported as a problem, and still a valid BRDF (the file
     // needs at least one lobe per texel): one lobe of zero weight.
     let black_lobe = ClothLobe { k: Vec3::ZERO, beta: 1.0, gamma: 0.0 };
-    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[black_lobe]), residual2: target2, target2, evals: 0, samples: samples.len(), unseen_lobes: 0, problem: Some(problem) };
+    let fallback = |problem: String| ClusterFit { params: ClothParams::new(Vec3::ZERO, o.eta, 0.0, &[black_lobe]), residual2: target2, target2, evals: 0, samples: samples.len(), unseen_lobes: 0, peak_capped_lobes: 0, problem: Some(problem) };
     if samples.is_empty() {
         return fallback("no samples: the model shows none of this cluster's texels along any training ray".into());
     }
@@ -434,12 +516,12 @@ pub fn fit_cluster<T: Sampled>(samples: &[T], o: &ClusterFitOptions) -> ClusterF
     let Some((beta, gamma, a, eta)) = decode(&best_x, o) else {
         return fallback("search left the parameter box".into());
     };
-    let Some(LinearSolve { coefficients: coef, residual2, unseen }) = solve_linear(samples, 1, &beta, &gamma, a, eta, o) else {
+    let Some(LinearSolve { coefficients: coef, residual2, unseen, capped }) = solve_linear(samples, 1, &beta, &gamma, a, eta, o) else {
         return fallback("linear solve failed".into());
     };
     let k = |j: usize| Vec3::new(coef[0][j] as f32, coef[1][j] as f32, coef[2][j] as f32).clamp(Vec3::ZERO, Vec3::splat(K_MAX));
     let lobes: Vec<ClothLobe> = (0..n).map(|j| ClothLobe { k: k(1 + j), beta: beta[j], gamma: gamma[j] }).collect();
-    ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), unseen_lobes: unseen, problem: None }
+    ClusterFit { params: ClothParams::new(k(0), eta, a, &lobes), residual2, target2, evals, samples: samples.len(), unseen_lobes: unseen, peak_capped_lobes: capped, problem: None }
 }
 
 /// Fits one cluster's BRDF and its frame offsets ([`FrameOffset`], Eq. 8 with the frame
@@ -578,6 +660,73 @@ mod tests {
             assert!((fit.params.lobes[0].beta - t.lobes[0].beta).abs() < 0.01, "{:?}", fit.params);
             assert!((fit.params.kd - t.kd).abs().max_element() < 0.005, "{:?}", fit.params);
         }
+    }
+
+    /// [`lobe_peak`] bounds what a lobe adds per unit k at every pair of directions, in
+    /// frames whose tangent lies in the surface, and the bounded reading's lobe reaches
+    /// it at a mirror pair in the plane of normal and tangent.
+    #[test]
+    fn the_lobe_peak_bounds_a_lobe_everywhere_and_is_reached() {
+        let mut rng = crate::reference::rng::Rng::new(9, 1, 2);
+        for reading in [BrdfReading::Bounded, BrdfReading::Width, BrdfReading::Held] {
+            for (beta, gamma) in [(0.03f32, 0.2f32), (0.1, 0.7), (0.4, 0.0), (1.0, 3.0)] {
+                let peak = lobe_peak(beta, gamma, 1.5, reading);
+                let unit = ClothParams::new(Vec3::ZERO, 1.5, 0.0, &[ClothLobe { k: Vec3::ONE, beta, gamma }]);
+                let mut most = 0.0f32;
+                for _ in 0..20_000 {
+                    let frame = cloth_frame(Vec3::Z, Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.0));
+                    let (wi, wo) = (hemi(&mut rng), hemi(&mut rng));
+                    // Half the pairs on the lobe's ridge: ω_o with θ_o = −θ_i, any φ_o.
+                    let wo = if rng.next_f32() < 0.5 {
+                        let s = -wi.dot(frame.t);
+                        let c = (1.0 - s * s).max(0.0).sqrt();
+                        let phi = std::f32::consts::TAU * rng.next_f32();
+                        (s * frame.t + c * (phi.cos() * frame.n + phi.sin() * frame.b)).normalize()
+                    } else {
+                        wo
+                    };
+                    most = most.max(cloth_response(&unit, &frame, wi, wo, reading).x);
+                }
+                // Off the ridge F(η, cos θ_d)·cos θ_i can beat the ridge's best, by as much
+                // as the lobe's θ profile allows: nothing for the sharp lobes the bound is
+                // for, up to 27% at β = 1 (measured here).
+                let slack = if beta <= 0.1 { 1.001 } else { 1.3 };
+                assert!(most <= peak * slack, "{reading:?} β {beta} γ {gamma}: {most} above the peak {peak}");
+                if reading == BrdfReading::Bounded {
+                    let frame = cloth_frame(Vec3::Z, Vec3::X);
+                    let mirror = (0..900).map(|d| (d as f32 * 0.1).to_radians()).map(|t| cloth_response(&unit, &frame, Vec3::new(t.sin(), 0.0, t.cos()), Vec3::new(-t.sin(), 0.0, t.cos()), reading).x).fold(0.0f32, f32::max);
+                    assert!(mirror >= 0.98 * peak, "β {beta}: the mirror pairs reach {mirror}, the peak is {peak}");
+                }
+            }
+        }
+    }
+
+    /// With a peak bound a lobe seen only by its tail cannot rise past the bound at any
+    /// pair: its k is held at bound / lobe_peak and the fit says so. Without one, the same
+    /// samples buy back the true lobe, whose top is many times the brightest sample.
+    #[test]
+    fn a_peak_bound_holds_a_lobe_seen_by_its_tail() {
+        let sharp = ClothLobe { k: Vec3::new(4.0, 3.0, 2.0), beta: 0.05, gamma: 0.0 };
+        let truth = ClothParams::new(Vec3::splat(0.02), 1.5, 0.0, &[sharp]);
+        let samples: Vec<Target> = synthetic(&truth, BrdfReading::Held, 0.0, 8000).into_iter().filter(|s| s.geo.theta_sum.abs() >= 0.1).collect();
+        let brightest = samples.iter().map(|s| s.radiance).fold(Vec3::ZERO, Vec3::max);
+        let o = ClusterFitOptions { lobes: 1, ..Default::default() };
+        let top = |p: &ClothParams| p.lobes().iter().map(|l| l.k * lobe_peak(l.beta, l.gamma, p.eta, o.reading)).fold(Vec3::ZERO, Vec3::max);
+        let free = fit_cluster(&samples, &o);
+        assert!(top(&free.params).x > 4.0 * brightest.x, "the premise: unbounded, the lobe's top {} against the brightest sample {}", top(&free.params), brightest);
+        assert_eq!(free.peak_capped_lobes, 0);
+        let bound = 2.0 * brightest;
+        let held = fit_cluster(&samples, &ClusterFitOptions { peak_bound: Some(bound), ..o.clone() });
+        assert!(held.problem.is_none());
+        assert!(top(&held.params).cmple(bound * 1.0001).all(), "top {} above the bound {bound}", top(&held.params));
+        assert!(held.peak_capped_lobes >= 1);
+        // A texel refined from it and raised past the bound is lowered to it, no further.
+        let mut texel = held.params;
+        texel.lobes[0].k *= 3.0;
+        let (lowered, count) = cap_peaks(&texel, bound, o.reading);
+        assert_eq!(count, 1);
+        assert!(top(&lowered).cmple(bound * 1.0001).all() && top(&lowered).max_element() >= 0.999 * bound.min_element());
+        assert_eq!(cap_peaks(&held.params, bound * 10.0, o.reading), (held.params, 0));
     }
 
     /// A lobe whose ridge no sample comes near (the samples at |θ_i + θ_o| ≥ 0.12, a

@@ -88,6 +88,52 @@ pub fn nnls_gram(ata: &[f64], atb: &[f64], btb: f64, n: usize) -> Result<Nnls, N
     Ok(Nnls { x, residual2: finite_nonneg(btb + quad), iterations })
 }
 
+/// [`nnls_gram`] with upper bounds: min ‖A x − b‖² subject to 0 ≤ x ≤ `upper`
+/// (`f64::INFINITY` for none). Each round solves the NNLS of the variables not yet held,
+/// then holds at its bound the one that exceeds it most (relative to the bound) and
+/// moves its columns to the right-hand side: at most n + 1 solves. A held variable is
+/// not released again, so this is the exact optimum only when no held variable would
+/// rather sit below its bound once the others are held — true of the BRDF fit's few,
+/// positively correlated columns, and the result is feasible in every case.
+pub fn nnls_gram_capped(ata: &[f64], atb: &[f64], btb: f64, n: usize, upper: &[f64]) -> Result<Nnls, NnlsError> {
+    check_shape("upper", upper.len(), n)?;
+    if let Some(index) = upper.iter().position(|u| u.is_nan() || *u < 0.0) {
+        return Err(NnlsError::NonFinite { what: "upper", index });
+    }
+    let mut held: Vec<Option<f64>> = vec![None; n];
+    let mut iterations = 0;
+    loop {
+        let free: Vec<usize> = (0..n).filter(|&i| held[i].is_none()).collect();
+        let m = free.len();
+        // The reduced problem: b' = b − A_h u_h, so A_fᵀb' = A_fᵀb − A_fᵀA_h u_h and
+        // b'ᵀb' = bᵀb − 2 u_hᵀA_hᵀb + u_hᵀA_hᵀA_h u_h.
+        let u = |i: usize| held[i].unwrap_or(0.0);
+        let mut sub_ata = vec![0.0; m * m];
+        let mut sub_atb = vec![0.0; m];
+        for (r, &i) in free.iter().enumerate() {
+            for (c, &j) in free.iter().enumerate() {
+                sub_ata[r * m + c] = ata[i * n + j];
+            }
+            sub_atb[r] = atb[i] - (0..n).map(|j| ata[i * n + j] * u(j)).sum::<f64>();
+        }
+        let mut sub_btb = btb;
+        for i in 0..n {
+            sub_btb += u(i) * ((0..n).map(|j| ata[i * n + j] * u(j)).sum::<f64>() - 2.0 * atb[i]);
+        }
+        let sol = nnls_gram(&sub_ata, &sub_atb, finite_nonneg(sub_btb), m)?;
+        iterations += sol.iterations;
+        let mut x: Vec<f64> = (0..n).map(u).collect();
+        for (r, &i) in free.iter().enumerate() {
+            x[i] = sol.x[r];
+        }
+        let worst = free.iter().copied().filter(|&i| x[i] > upper[i]).max_by(|&a, &b| (x[a] / upper[a]).total_cmp(&(x[b] / upper[b])));
+        match worst {
+            Some(i) => held[i] = Some(upper[i]),
+            None => return Ok(Nnls { x, residual2: sol.residual2, iterations }),
+        }
+    }
+}
+
 fn check_shape(what: &'static str, got: usize, expected: usize) -> Result<(), NnlsError> {
     if got == expected { Ok(()) } else { Err(NnlsError::Shape { what, expected, got }) }
 }
@@ -483,6 +529,53 @@ mod tests {
         assert_eq!(g.x[0], 0.0);
         assert!((g.x[1] - x2).abs() < 1e-12);
         assert!((g.residual2 - r.residual2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn upper_bounds_hold_and_cost_no_more_than_clamping() {
+        // On the identity each variable is its own problem: clipped at both ends.
+        let id = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        let c = nnls_gram_capped(&id, &[1.0, -2.0, 3.0], 14.0, 3, &[0.5, 1.0, 10.0]).unwrap();
+        assert_eq!(c.x, vec![0.5, 0.0, 3.0]);
+        assert!((c.residual2 - 4.25).abs() < 1e-12, "{}", c.residual2);
+        // No bound is no change.
+        let mut rng = Lcg(11);
+        for trial in 0..200 {
+            let (rows, cols) = (16, 1 + trial % 5);
+            // Positive columns, as the BRDF's basis functions are.
+            let a: Vec<f64> = (0..rows * cols).map(|_| rng.next().abs() + 0.01).collect();
+            let b: Vec<f64> = (0..rows).map(|_| 2.0 * rng.next().abs()).collect();
+            let (ata, atb, btb) = gram(&a, rows, cols, &b);
+            let free = nnls_gram(&ata, &atb, btb, cols).unwrap();
+            assert_eq!(nnls_gram_capped(&ata, &atb, btb, cols, &vec![f64::INFINITY; cols]).unwrap().x, free.x);
+            let upper: Vec<f64> = free.x.iter().map(|x| x * (0.2 + 0.9 * rng.next().abs())).collect();
+            let capped = nnls_gram_capped(&ata, &atb, btb, cols, &upper).unwrap();
+            let clamped: Vec<f64> = free.x.iter().zip(&upper).map(|(x, u)| x.min(*u)).collect();
+            let residual = |x: &[f64]| (0..rows).map(|r| ((0..cols).map(|j| a[r * cols + j] * x[j]).sum::<f64>() - b[r]).powi(2)).sum::<f64>();
+            for j in 0..cols {
+                assert!(capped.x[j] >= 0.0 && capped.x[j] <= upper[j], "trial {trial}: x {:?}, upper {upper:?}", capped.x);
+            }
+            assert!((capped.residual2 - residual(&capped.x)).abs() <= 1e-9 * (1.0 + btb), "trial {trial}: {} against {}", capped.residual2, residual(&capped.x));
+            assert!(capped.residual2 <= residual(&clamped) + 1e-9 * (1.0 + btb), "trial {trial}: capped {} against clamped {}", capped.residual2, residual(&clamped));
+            // Kuhn–Tucker with both bounds: at 0 the gradient w = Aᵀ(b − Ax) points down,
+            // at the cap up, and it vanishes between.
+            let w = gradient(&a, rows, cols, &b, &capped.x);
+            for j in 0..cols {
+                let tol = 1e-8 * (1.0 + btb);
+                if upper[j] == 0.0 {
+                    assert_eq!(capped.x[j], 0.0);
+                } else if capped.x[j] == 0.0 {
+                    assert!(w[j] <= tol, "trial {trial}: w {w:?} x {:?}", capped.x);
+                } else if capped.x[j] == upper[j] {
+                    assert!(w[j] >= -tol, "trial {trial}: w {w:?} x {:?} upper {upper:?}", capped.x);
+                } else {
+                    assert!(w[j].abs() <= tol, "trial {trial}: w {w:?} x {:?}", capped.x);
+                }
+            }
+        }
+        assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, f64::NAN, 1.0]).is_err());
+        assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, -1.0, 1.0]).is_err());
+        assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0]).is_err());
     }
 
     #[test]

@@ -204,6 +204,12 @@ pub struct BakeArgs {
     /// Ridge of the per-texel refinement towards the cluster's values (relative).
     #[arg(long, default_value_t = 0.05)]
     pub ridge: f64,
+    /// Bound every lobe (cluster and texel) to add at most this multiple of the brightest
+    /// radiance its cluster showed in the training images, at any pair of directions: a
+    /// lobe seen only by its tail cannot put a highlight where no pair looked (0: no
+    /// bound; baker/FIT_MEASUREMENTS.md, "A bound on a lobe's peak").
+    #[arg(long, default_value_t = fabric_baker::fit::cluster_fit::LOBE_PEAK_MAX)]
+    pub lobe_peak_max: f32,
     /// No visibility gradient per texel (format 1.12): the texel's response the same
     /// from every side (the refinement of k_d and k_j alone).
     #[arg(long)]
@@ -298,6 +304,10 @@ pub fn run(args: BakeArgs) -> Result<()> {
         bail!("--ridge {}: must be a non-negative number", args.ridge);
     }
     options.per_texel_ridge = (!args.clustered).then_some(args.ridge);
+    if !(args.lobe_peak_max.is_finite() && (args.lobe_peak_max == 0.0 || args.lobe_peak_max >= 1.0)) {
+        bail!("--lobe-peak-max {}: must be 0 (no bound) or at least 1", args.lobe_peak_max);
+    }
+    options.lobe_peak_max = (args.lobe_peak_max > 0.0).then_some(args.lobe_peak_max);
     if args.no_gradient || args.clustered {
         options.gradient = None;
     }
@@ -439,6 +449,12 @@ pub fn run(args: BakeArgs) -> Result<()> {
         );
     } else {
         println!("lobe energy: worst albedo of the fitted lobes {worst:.2} (bound {}): none scaled", e.lobe_albedo_max);
+    }
+    if let Some(m) = r.lobe_peak_max {
+        println!(
+            "lobe peaks: {} of {} cluster lobes held at {m}x their cluster's brightest training radiance, {} texel lobes lowered to it",
+            r.peak_capped_lobes, r.cluster_lobes, r.texel_lobes_peak_capped
+        );
     }
     if r.unseen_lobes > 0 {
         println!("unseen lobes: {} of {} cluster lobes held at k = 0: no training pair came within three widths of their ridge (more pairs place them)", r.unseen_lobes, r.cluster_lobes);
