@@ -469,6 +469,11 @@ impl BakeOptions {
         if !(self.fit.eta >= ETA_MIN_FIT && self.fit.eta <= fabric_runtime::brdf::ETA_MAX) {
             return bad("eta", self.fit.eta.to_string(), "must be in [1.01, 4] (at η = 1 the Fresnel factor, and every lobe with it, is zero)");
         }
+        if let Some(m) = self.lobe_peak_max
+            && !(m.is_finite() && m >= 1.0)
+        {
+            return bad("lobe_peak_max", m.to_string(), "a lobe's bound must be a finite multiple ≥ 1 of its cluster's brightest radiance (None: no bound)");
+        }
         if let Some(t) = &self.transmission
             && t.openness_rays > 256
         {
@@ -1231,5 +1236,15 @@ mod tests {
         assert!(o(8, 4).validate().is_err());
         assert!(o(K_AUTO, K_AUTO).validate().is_ok());
         assert!(o(K_AUTO, 1 << 20).validate().is_err());
+    }
+
+    #[test]
+    fn an_absurd_lobe_peak_bound_is_refused() {
+        let o = |m| BakeOptions { lobe_peak_max: m, ..Default::default() };
+        assert!(o(None).validate().is_ok() && o(Some(1.0)).validate().is_ok() && o(Some(LOBE_PEAK_MAX)).validate().is_ok());
+        for m in [0.5, 0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let e = o(Some(m)).validate().expect_err("refused").to_string();
+            assert!(e.contains("lobe_peak_max"), "{m}: {e}");
+        }
     }
 }
