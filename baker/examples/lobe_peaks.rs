@@ -11,7 +11,10 @@
 //! the volume and from the whole model, so a needle can be told from a glint the
 //! truth has too: the brightest pixel and the 99.9th percentile of each, and the error.
 //!
-//! `cargo run --release -p fabric-baker --example lobe_peaks [--against DIR] MODEL.hyb...`
+//! `--level N` reads level N of the mip chain instead (its texels' BRDFs, no rendering):
+//! whether the chain's coarse fits bring needles back.
+//!
+//! `cargo run --release -p fabric-baker --example lobe_peaks [--level N] [--against DIR] MODEL.hyb...`
 
 use std::path::Path;
 
@@ -36,14 +39,22 @@ fn main() {
         .collect();
     let pairs: Vec<(Vec3, Vec3)> = spiral.iter().step_by(4).flat_map(|&wi| spiral.iter().map(move |&wo| (wi, wo))).collect();
     let mut against: Option<String> = None;
+    let mut level_index = 0usize;
     let mut args = std::env::args().skip(1);
     while let Some(path) = args.next() {
         if path == "--against" {
             against = Some(args.next().expect("--against takes a fabric directory"));
             continue;
         }
+        if path == "--level" {
+            level_index = args.next().and_then(|s| s.parse().ok()).expect("--level takes a level number");
+            continue;
+        }
         let model = format::read_file(Path::new(&path)).expect("read the model");
-        let level = &model.levels[0];
+        let Some(level) = model.levels.get(level_index) else {
+            eprintln!("{path}: no level {level_index} ({} levels)", model.levels.len());
+            continue;
+        };
         let brdfs: Vec<_> = (0..level.height).flat_map(|j| (0..level.width).map(move |i| (i, j))).map(|(i, j)| level.texel_brdf(i, j)).collect();
         let (reading, diffuse) = (model.meta.reading, model.meta.diffuse);
         // Per pair: (brightest / p99, brightest, its texel).
@@ -63,7 +74,7 @@ fn main() {
         let n = ratios.len();
         let (k, &(_, top, t)) = per_pair.iter().enumerate().max_by(|a, b| a.1.1.total_cmp(&b.1.1)).expect("pairs");
         println!(
-            "{path} ({} reading): brightest texel / the sheet's 99th percentile over {n} pairs: median {:.2}, 99th percentile {:.1}, most {:.0}; pairs above 10x: {}",
+            "{path} level {level_index} ({} reading): brightest texel / the sheet's 99th percentile over {n} pairs: median {:.2}, 99th percentile {:.1}, most {:.0}; pairs above 10x: {}",
             reading.name(),
             ratios[n / 2],
             ratios[n * 99 / 100],
@@ -86,7 +97,7 @@ fn main() {
                 fabric_runtime::brdf::cloth_gaussian(0.0, l.beta)
             );
         }
-        if let Some(dir) = &against {
+        if let (Some(dir), 0) = (&against, level_index) {
             render_worst(dir, &model, &pairs, &per_pair);
         }
     }
