@@ -364,6 +364,18 @@ pub struct EnergyReport {
     pub flyaway_entries_capped: usize,
 }
 
+/// One texel after the per-texel refinement: its BRDF (peak- and energy-capped), the
+/// lobes' albedo before the energy cap, its visibility gradient, the BRDF refined
+/// without the gradient (to report what the gradient bought), and how many of its
+/// lobes the peak bound lowered.
+struct RefinedTexel {
+    params: ClothParams,
+    albedo: f32,
+    gradient: [f32; 4],
+    without_gradient: Option<ClothParams>,
+    peak_lowered: u32,
+}
+
 /// The worst of the lobes' albedos as fitted, and how many were above the bound (scaled).
 fn albedo_summary(albedos: &[f32]) -> (f32, usize) {
     (albedos.iter().copied().fold(0.0, f32::max), albedos.iter().filter(|&&a| a > LOBE_ALBEDO_MAX).count())
@@ -793,7 +805,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let bar = begin_stage(progress, "per-texel refinement", 1);
             // Each texel's samples gathered as it is refined (Groups: four bytes a sample).
             let by_texel = Groups::by_key(samples.len(), texels, |i| samples[i].hit as usize);
-            let refined: Vec<(ClothParams, f32, [f32; 4], Option<ClothParams>, u32)> = (0..texels)
+            let refined: Vec<RefinedTexel> = (0..texels)
                 .into_par_iter()
                 .map(|j| {
                     let texel_samples = by_texel.group(j).iter().map(|&i| &samples[i as usize]);
@@ -812,28 +824,28 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                             let (p, g) = refine_gradient_from(first, &t, &pairs, &params[c], ridge, go, options.fit.reading);
                             let (p, lowered) = peak(p);
                             let (p, albedo) = cap_lobes(&p, &unit[c]);
-                            (p, albedo, g, Some(plain.0), lowered)
+                            RefinedTexel { params: p, albedo, gradient: g, without_gradient: Some(plain.0), peak_lowered: lowered }
                         }
-                        None => (plain.0, plain.1, [0.0; 4], None, lowered_first),
+                        None => RefinedTexel { params: plain.0, albedo: plain.1, gradient: [0.0; 4], without_gradient: None, peak_lowered: lowered_first },
                     }
                 })
                 .collect();
-            let albedos: Vec<f32> = refined.iter().map(|r| r.1).collect();
+            let albedos: Vec<f32> = refined.iter().map(|r| r.albedo).collect();
             (energy.worst_texel_albedo, energy.texels_capped) = albedo_summary(&albedos);
-            texel_lobes_peak_capped = refined.iter().map(|r| r.4 as usize).sum();
+            texel_lobes_peak_capped = refined.iter().map(|r| r.peak_lowered as usize).sum();
             drop(by_texel);
             if options.gradient.is_some() {
                 // What the gradient bought: the training error of the refinement without it.
-                let plain: Vec<ClothParams> = refined.iter().map(|r| r.3.unwrap_or(r.0)).collect();
+                let plain: Vec<ClothParams> = refined.iter().map(|r| r.without_gradient.unwrap_or(r.params)).collect();
                 let predictions = predict_images(&samples, &|hit| &plain[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
                 let (error_without, block_error_without) = image_errors(&predictions, &training.images, nx, ny);
-                let mut size: Vec<f32> = refined.iter().map(|r| r.2.iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+                let mut size: Vec<f32> = refined.iter().map(|r| r.gradient.iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
                 size.sort_by(f32::total_cmp);
                 let q = |f: f64| size.get(((size.len() as f64 * f) as usize).min(size.len().saturating_sub(1))).copied().unwrap_or(0.0);
                 gradient_report = Some(GradientReport { median: q(0.5), p90: q(0.9), error_without, block_error_without });
-                texel_gradients = Some(refined.iter().map(|r| r.2).collect::<Vec<[f32; 4]>>());
+                texel_gradients = Some(refined.iter().map(|r| r.gradient).collect::<Vec<[f32; 4]>>());
             }
-            let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.0).collect();
+            let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.params).collect();
             let geo_of = |s: &Sample| match &texel_gradients {
                 Some(g) => {
                     let (wi, wo) = dirs[s.dirs as usize];

@@ -20,8 +20,9 @@
 //! Every term is evaluated by the runtime's own BRDF functions (`cloth_lobe_shape`,
 //! `cloth_shadowing`, `cloth_fresnel`), never a copy.
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothParams, DiffuseLaw, K_MAX, cloth_fresnel, cloth_lobe_shape, cloth_shadowing};
 use std::f32::consts::TAU;
+
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothParams, DiffuseLaw, K_MAX, cloth_fresnel, cloth_lobe_shape, cloth_shadowing};
 use glam::Vec3;
 
 use super::frames::FrameOffset;
