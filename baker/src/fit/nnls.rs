@@ -29,6 +29,8 @@ pub enum NnlsError {
     Shape { what: &'static str, expected: usize, got: usize },
     #[error("{what}[{index}] is not finite")]
     NonFinite { what: &'static str, index: usize },
+    #[error("upper[{index}] = {value}: an upper bound must be ≥ 0 (infinity for none)")]
+    BadBound { index: usize, value: f64 },
 }
 
 /// A solution of an NNLS problem.
@@ -97,8 +99,8 @@ pub fn nnls_gram(ata: &[f64], atb: &[f64], btb: f64, n: usize) -> Result<Nnls, N
 /// positively correlated columns, and the result is feasible in every case.
 pub fn nnls_gram_capped(ata: &[f64], atb: &[f64], btb: f64, n: usize, upper: &[f64]) -> Result<Nnls, NnlsError> {
     check_shape("upper", upper.len(), n)?;
-    if let Some(index) = upper.iter().position(|u| u.is_nan() || *u < 0.0) {
-        return Err(NnlsError::NonFinite { what: "upper", index });
+    if let Some(index) = upper.iter().position(|u| !(*u >= 0.0)) {
+        return Err(NnlsError::BadBound { index, value: upper[index] });
     }
     let mut held: Vec<Option<f64>> = vec![None; n];
     let mut iterations = 0;
@@ -573,8 +575,8 @@ mod tests {
                 }
             }
         }
-        assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, f64::NAN, 1.0]).is_err());
-        assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, -1.0, 1.0]).is_err());
+        assert_eq!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, -1.0, 1.0]).unwrap_err(), NnlsError::BadBound { index: 1, value: -1.0 });
+        assert!(matches!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0, f64::NAN, 1.0]), Err(NnlsError::BadBound { index: 1, .. })));
         assert!(nnls_gram_capped(&id, &[1.0, 2.0, 3.0], 14.0, 3, &[1.0]).is_err());
     }
 
