@@ -41,6 +41,14 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert!(on.is_finite() && off.is_finite() && on > 0.0 && off > 0.0, "{f:?}");
     assert_eq!(b.model.meta.flyaway_shadow, on < off, "{f:?}");
     assert_eq!(f.shadow_surface, b.model.meta.flyaway_shadow);
+    // The surface refitted behind the flyaways (fit::behind): measured on the whole model
+    // both ways, kept only where it brought the whole model nearer the full volume.
+    let s = r.surface_refit.as_ref().expect("tried by default");
+    eprintln!("surface refit {s:?}");
+    assert!(s.samples > 0 && s.block_error_before.is_finite() && s.block_error_after.is_finite() && s.block_error_after > 0.0, "{s:?}");
+    assert_eq!(s.kept, s.block_error_after < s.block_error_before, "{s:?}");
+    // Before it, the whole model is the one the flyaway fit kept.
+    assert!((s.block_error_before - on.min(off)).abs() < 1e-9, "{s:?} against {on} / {off}");
     assert!(r.k >= 2 && !r.rounds.is_empty() && r.error.is_finite());
     // The peak memory after each stage (Linux reports it): one per timed stage, in bytes
     // (a process that rendered training images holds well over a MiB; a reading left in

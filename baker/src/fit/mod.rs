@@ -2,10 +2,11 @@
 //! configurations ([`directions`]), training renderings and the model-side samples
 //! ([`samples`]), per-texel features ([`features`]), the lobes' energy bound ([`energy`]), clustering ([`kmeans`]), the
 //! per-cluster fit ([`cluster_fit`], with its frame offset [`frames`]: Nelder–Mead over [`simplex`] with the linear
-//! parameters by [`nnls`]), each texel's visibility gradient ([`gradient`]), the flyaways' fit ([`flyaways`]) and, for a BSDF, the
+//! parameters by [`nnls`]), each texel's visibility gradient ([`gradient`]), the flyaways' fit ([`flyaways`]), the surface refitted behind them ([`behind`]) and, for a BSDF, the
 //! transmission term's ([`transmission`]). The pipeline that
 //! chains them is `crate::bake`.
 
+pub mod behind;
 pub mod cluster_fit;
 pub mod directions;
 pub mod energy;

@@ -151,8 +151,9 @@ pub struct BakeArgs {
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).
     #[arg(long)]
     pub volumetric: bool,
-    /// What the surface fit's renderings leave out.
-    #[arg(long, value_enum, default_value = "above")]
+    /// What the surface fit's renderings leave out: nothing by default, the full volume
+    /// (baker/FIT_MEASUREMENTS.md, "What the surface fit sees")
+    #[arg(long, value_enum, default_value = "none")]
     pub mask: MaskArg,
     /// Scale of the fiber-level detail h0 − h in the normal map (`fabric geometry
     /// --detail-strength`, whose default 1 is the detail as measured; the bake's 0.25 is
@@ -191,6 +192,11 @@ pub struct BakeArgs {
     /// "The flyaways' shadow on the surface")
     #[arg(long, value_enum, default_value = "auto")]
     pub flyaway_shadow: FlyawayShadowArg,
+    /// Leave the surface as fitted on the masked volume instead of refitting each texel's
+    /// k_d, k_j and gradient behind the fitted flyaways on the full volume's training
+    /// images (baker/FIT_MEASUREMENTS.md, "The surface refitted behind the flyaways")
+    #[arg(long)]
+    pub no_surface_refit: bool,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -334,6 +340,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             FlyawayShadowArg::On => fabric_baker::bake::FlyawayShadow::On,
             FlyawayShadowArg::Off => fabric_baker::bake::FlyawayShadow::Off,
         },
+        refit_surface: !args.no_surface_refit,
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
@@ -479,6 +486,15 @@ pub fn run(args: BakeArgs) -> Result<()> {
             (Some(on), Some(off)) => println!("  the flyaways' shadow on the surface: {shadow} (the whole model against the full volume's training images over 4x4 blocks: {:.2}% with it, {:.2}% without)", 100.0 * on, 100.0 * off),
             _ => println!("  the flyaways' shadow on the surface: {shadow}"),
         }
+    }
+    if let Some(s) = &r.surface_refit {
+        let verdict = if s.kept { "kept" } else { "not kept" };
+        println!(
+            "surface refitted behind the flyaways ({} samples): the whole model against the full volume's training images over 4x4 blocks {:.2}% -> {:.2}%, {verdict}",
+            s.samples,
+            100.0 * s.block_error_before,
+            100.0 * s.block_error_after
+        );
     }
     if let Some(t) = &r.transmission {
         println!(
