@@ -151,9 +151,9 @@ pub struct BakeArgs {
     /// Fit and render surface hits with the volumetric factor 2/(μ_i + μ_o) (format 1.1).
     #[arg(long)]
     pub volumetric: bool,
-    /// What the surface fit's renderings leave out: nothing by default, the full volume
-    /// (baker/FIT_MEASUREMENTS.md, "What the surface fit sees")
-    #[arg(long, value_enum, default_value = "none")]
+    /// What the surface fit's renderings leave out: the flyaway voxels V by default, which
+    /// the model draws itself (baker/FIT_MEASUREMENTS.md, "What the surface fit sees")
+    #[arg(long, value_enum, default_value = "flyaways")]
     pub mask: MaskArg,
     /// Scale of the fiber-level detail h0 − h in the normal map (`fabric geometry
     /// --detail-strength`, whose default 1 is the detail as measured; the bake's 0.25 is
