@@ -1002,7 +1002,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         let errors = |shadow: bool| tried.iter().find(|t| t.0.meta.flyaway_shadow == shadow).map(|t| t.3).filter(|e| e.is_finite());
         let (block_error_shadowed, block_error_unshadowed) = (errors(true), errors(false));
         let best = (0..tried.len()).min_by(|&a, &b| tried[a].3.total_cmp(&tried[b].3)).unwrap_or(0);
-        let (kept, mut rep, fly_albedos, _) = tried.swap_remove(best);
+        let (kept, mut rep, fly_albedos, kept_block_error) = tried.swap_remove(best);
         model = kept;
         rep.shadow_surface = model.meta.flyaway_shadow;
         (rep.block_error_shadowed, rep.block_error_unshadowed) = (block_error_shadowed, block_error_unshadowed);
@@ -1016,8 +1016,8 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         stage("flyaways", t);
         flyaway_report = Some(rep);
 
-        // 5a. The surface refitted behind the flyaways just fitted (fit::behind): what
-        // the mask took from its renderings and the flyaways do not hold.
+        // 5a. The surface refitted behind the flyaways just fitted (fit::behind): its fit
+        // saw no flyaways in front of it.
         if let (true, Some(ridge), Some(texel_now)) = (fo.refit_surface, options.per_texel_ridge, texel_params.as_ref()) {
             let t = Instant::now();
             let bar = begin_stage(progress, "surface behind the flyaways", 1);
@@ -1039,7 +1039,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let mut candidate = model.clone();
             candidate.levels[0] = level_with(&refit_params, refit_gradients.as_ref(), &model.levels[0]);
             let measure = |m: &HybridModel| full_image_errors(m, &full, &full_training, jitter_seed, options.probe_rays, options.shadows).map_err(|e| BakeError::Flyaways(format!("measuring the surface refitted behind them: {e}")));
-            let (before, after) = (measure(&model)?.1, measure(&candidate)?.1);
+            // The kept flyaway fit's own figure where both shadows were measured.
+            let before = if kept_block_error.is_finite() { kept_block_error } else { measure(&model)?.1 };
+            let after = measure(&candidate)?.1;
             let kept = after < before;
             if kept {
                 model = candidate;

@@ -11,7 +11,9 @@
 //! baker/FIT_MEASUREMENTS.md, "What the surface fit sees"). With the flyaways fixed a
 //! pixel is linear in the surface's k_d, k_j again:
 //!
-//!     L(ray) = F(ray) + T(ray) · V(ray) · f_t(ω_i, ω_o)
+//! ```text
+//! L(ray) = F(ray) + T(ray) · V(ray) · f_t(ω_i, ω_o)
+//! ```
 //!
 //! F the flyaways' radiance along the ray, T the flyaways' transmittance in front of the
 //! surface hit, V the light's visibility there (through the flyaways where they shadow
