@@ -29,7 +29,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::fit::behind::behind_samples;
+use crate::fit::behind::{MIN_SAMPLES, behind_samples};
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LOBE_PEAK_MAX, LobeTarget, Target, TargetRay, cap_peaks, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
 use crate::fit::gradient::{GradientOptions, refine_gradient_from, with_gradient};
@@ -1033,9 +1033,13 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let (behind, values): (Vec<Sample>, Vec<Vec3>) = behind_samples(&model, &dark, &full, &full_training, jitter_seed, options.probe_rays, options.shadows).into_iter().unzip();
             let full_w: Vec<f32> = if options.pair_weights { full_training.pair_weights() } else { Vec::new() };
             let full_pw = |s: &Sample| full_w.get(s.dirs as usize).copied().unwrap_or(1.0);
+            let mut seen = vec![0usize; texels];
+            behind.iter().for_each(|s| seen[s.hit as usize] += 1);
             let refit = refine_texels(&behind, &|i| values[i], &full_pw, ridge);
-            let refit_params: Vec<ClothParams> = refit.iter().map(|r| r.params).collect();
-            let refit_gradients = texel_gradients.as_ref().map(|_| refit.iter().map(|r| r.gradient).collect::<Vec<[f32; 4]>>());
+            // A texel seen by too few rays keeps its first refinement (fit::behind::MIN_SAMPLES).
+            let keep = |j: usize| seen[j] < MIN_SAMPLES;
+            let refit_params: Vec<ClothParams> = (0..texels).map(|j| if keep(j) { texel_now[j] } else { refit[j].params }).collect();
+            let refit_gradients = texel_gradients.as_ref().map(|g| (0..texels).map(|j| if keep(j) { g[j] } else { refit[j].gradient }).collect::<Vec<[f32; 4]>>());
             let mut candidate = model.clone();
             candidate.levels[0] = level_with(&refit_params, refit_gradients.as_ref(), &model.levels[0]);
             let measure = |m: &HybridModel| full_image_errors(m, &full, &full_training, jitter_seed, options.probe_rays, options.shadows).map_err(|e| BakeError::Flyaways(format!("measuring the surface refitted behind them: {e}")));

@@ -19,6 +19,18 @@
 //! surface hit, V the light's visibility there (through the flyaways where they shadow
 //! the surface), f_t the texel's response. Each probe ray becomes a sample of texel t
 //! whose target is the pixel less F and whose visibility carries T.
+//!
+//! A ray whose surface hit lies mostly hidden (T < [`MIN_TRANSMITTANCE`]) is left out:
+//! its pixel is the flyaways' and says little of the surface, and a texel seen only
+//! through them would otherwise buy any k (felt 128²: a k_d of hundreds, one white pixel
+//! in a held-out view). A texel left with fewer than [`MIN_SAMPLES`] samples keeps what
+//! the first refinement gave it.
+
+/// The least transmittance in front of a surface hit for its ray to be a sample.
+pub const MIN_TRANSMITTANCE: f32 = 0.5;
+
+/// The fewest samples a texel is refitted from.
+pub const MIN_SAMPLES: usize = 8;
 
 use fabric_runtime::cpu::shading::volume_factor;
 use fabric_runtime::cpu::{CpuRenderOptions, Scene, ShadowMode};
@@ -57,7 +69,7 @@ pub fn behind_samples(model: &HybridModel, dark: &HybridModel, measure: &Measure
                     let (u, v) = jitter(j as u32, s);
                     let (o, d) = measure.sample_ray(x, y, u, v, pair.wo);
                     let ray = Ray::new(o, d);
-                    let hit = scene.probe_ray(&ray, 0, true).surface?;
+                    let hit = scene.probe_ray(&ray, 0, true).surface.filter(|h| h.transmittance >= MIN_TRANSMITTANCE)?;
                     let flyaways = dark_scene.trace_ray(&ray, 0).radiance;
                     let index = hit.texel.0 + model.width() * hit.texel.1;
                     let vis = hit.visibility * hit.transmittance * factor;
