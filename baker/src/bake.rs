@@ -153,7 +153,10 @@ pub struct FlyawayOptions {
     pub shadow_surface: FlyawayShadow,
     /// With the flyaways fitted, refit each surface texel's k_d, k_j (and gradient) on the
     /// full volume's training images behind them ([`crate::fit::behind`]), kept where the
-    /// whole model's training error over 4×4 blocks falls.
+    /// whole model's training error over 4×4 blocks falls. Off by default: it buys 0.2–0.8
+    /// points at 64², but on felt 128² it still leaves texels 18 times brighter than the
+    /// sheet's 99th percentile where the bake without it has none
+    /// (baker/FIT_MEASUREMENTS.md, "What the surface fit sees").
     pub refit_surface: bool,
 }
 
@@ -193,7 +196,7 @@ impl Default for FlyawayOptions {
         // 20–27%), felt 22.6 → 21.2%, twill 14.6 → 14.2%; far views at 70° 5.5–10.9% →
         // 3.5–4.9% (baker/FIT_MEASUREMENTS.md and PREFILTER_MEASUREMENTS.md, "The
         // flyaways' lobes as cylinders").
-        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder, shadow_surface: FlyawayShadow::Auto, refit_surface: true }
+        FlyawayOptions { clusters: 4, spp: 16, alpha: FlyawayAlpha::Density, path_gain: true, lobes: FiberLobes::Cylinder, shadow_surface: FlyawayShadow::Auto, refit_surface: false }
     }
 }
 

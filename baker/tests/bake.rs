@@ -23,7 +23,10 @@ fn quick() -> BakeOptions {
 #[test]
 fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     let volume = generate(&Preset::Twill.params(), [48, 48, 16], 3).unwrap();
-    let b = bake(&volume, &quick(), &NoProgress).unwrap();
+    let mut o = quick();
+    // The surface refit behind the flyaways (off by default) is exercised here.
+    o.flyaways.as_mut().expect("flyaways by default").refit_surface = true;
+    let b = bake(&volume, &o, &NoProgress).unwrap();
     b.model.validate().unwrap();
     let r = &b.report;
     eprintln!("rounds {:?}", r.rounds);
@@ -43,7 +46,7 @@ fn a_tiny_twill_bakes_into_a_model_that_renders_close_to_the_reference() {
     assert_eq!(f.shadow_surface, b.model.meta.flyaway_shadow);
     // The surface refitted behind the flyaways (fit::behind): measured on the whole model
     // both ways, kept only where it brought the whole model nearer the full volume.
-    let s = r.surface_refit.as_ref().expect("tried by default");
+    let s = r.surface_refit.as_ref().expect("asked for");
     eprintln!("surface refit {s:?}");
     assert!(s.samples > 0 && s.block_error_before.is_finite() && s.block_error_after.is_finite() && s.block_error_after > 0.0, "{s:?}");
     assert_eq!(s.kept, s.block_error_after < s.block_error_before, "{s:?}");

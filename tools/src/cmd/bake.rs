@@ -192,11 +192,11 @@ pub struct BakeArgs {
     /// "The flyaways' shadow on the surface")
     #[arg(long, value_enum, default_value = "auto")]
     pub flyaway_shadow: FlyawayShadowArg,
-    /// Leave the surface as fitted on the masked volume instead of refitting each texel's
-    /// k_d, k_j and gradient behind the fitted flyaways on the full volume's training
-    /// images (baker/FIT_MEASUREMENTS.md, "The surface refitted behind the flyaways")
+    /// Refit each surface texel's k_d, k_j and gradient behind the fitted flyaways on the
+    /// full volume's training images (off by default: it can leave hot texels behind dense
+    /// flyaways; baker/FIT_MEASUREMENTS.md, "What the surface fit sees")
     #[arg(long)]
-    pub no_surface_refit: bool,
+    pub surface_refit: bool,
     /// Samples per texel of the full-volume training renderings (flyaway fit).
     #[arg(long, default_value_t = 16)]
     pub flyaway_spp: u32,
@@ -340,7 +340,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             FlyawayShadowArg::On => fabric_baker::bake::FlyawayShadow::On,
             FlyawayShadowArg::Off => fabric_baker::bake::FlyawayShadow::Off,
         },
-        refit_surface: !args.no_surface_refit,
+        refit_surface: args.surface_refit,
     });
     options.prefilter = if args.no_prefilter { None } else { Some(args.prefilter.options(args.seed, !args.no_flyaways)?) };
     if !(args.tau_max.is_finite() && (0.0..=fabric_runtime::brdf::TAU_MAX).contains(&args.tau_max)) {
