@@ -356,6 +356,28 @@ float cloth_visibility_gradient(vec4 g, vec3 wi, vec3 wo) {
     return max(1.0 + c.x * wo.x + c.y * wo.y + c.z * wi.x + c.w * wi.y, 0.0);
 }
 
+// A texel's visibility curvature (format 1.15): the six second-order terms of the
+// directions' slant, each even under wi <-> wo, and the visibility with them,
+// max(1 + g.(wo.x, wo.y, wi.x, wi.y) + q.e(wi, wo), 0), each q clamped to
+// +-CLOTH_CURVATURE_MAX. q = 0 is cloth_visibility_gradient.
+const float CLOTH_CURVATURE_MAX = 2.0;
+
+void cloth_curvature_terms(vec3 wi, vec3 wo, out vec3 e0, out vec3 e1) {
+    e0 = vec3(wo.x * wo.x + wi.x * wi.x, wo.y * wo.y + wi.y * wi.y, wo.x * wo.y + wi.x * wi.y);
+    e1 = vec3(wo.x * wi.x, wo.y * wi.y, wo.x * wi.y + wo.y * wi.x);
+}
+
+float cloth_visibility(vec4 g, vec3 q0, vec3 q1, vec3 wi, vec3 wo) {
+    vec4 c = min(max(g, vec4(-CLOTH_GRADIENT_MAX)), vec4(CLOTH_GRADIENT_MAX));
+    vec3 d0 = min(max(q0, vec3(-CLOTH_CURVATURE_MAX)), vec3(CLOTH_CURVATURE_MAX));
+    vec3 d1 = min(max(q1, vec3(-CLOTH_CURVATURE_MAX)), vec3(CLOTH_CURVATURE_MAX));
+    vec3 e0;
+    vec3 e1;
+    cloth_curvature_terms(wi, wo, e0, e1);
+    float even = d0.x * e0.x + d0.y * e0.y + d0.z * e0.z + d1.x * e1.x + d1.y * e1.y + d1.z * e1.z;
+    return max(1.0 + c.x * wo.x + c.y * wo.y + c.z * wi.x + c.w * wi.y + even, 0.0);
+}
+
 // THE TRANSMISSION TERM of a BSDF texel (format 1.3): diffuse kd and one lobe about the
 // transmitted direction, attenuated along the slant path with optical depth tau. All
 // zeros: nothing comes through.

@@ -110,7 +110,10 @@ void main() {
         o.x = vec4(volume_factor(e.a.xyz, e.b.xyz), flyaway_opacity(e.c.x, e.c.y, e.c.z),
                    cloth_diffuse_cosine(CLOTH_DIFFUSE_LOMMEL_SEELIGER, n, e.a.xyz, e.b.xyz),
                    cloth_diffuse_env_factor(CLOTH_DIFFUSE_LOMMEL_SEELIGER, e.b.xyz));
-        o.y = vec4(cloth_visibility_gradient(uintBitsToFloat(e.u), e.a.xyz, e.b.xyz), 0.0, 0.0, 0.0);
+        // The curvature q made from the gradient's inputs as gpu_twins.rs makes it.
+        vec4 g = uintBitsToFloat(e.u);
+        float v = cloth_visibility(g, vec3(g.x, g.y, g.z * g.w), vec3(g.z, g.w, g.x * g.y), e.a.xyz, e.b.xyz);
+        o.y = vec4(cloth_visibility_gradient(g, e.a.xyz, e.b.xyz), v, 0.0, 0.0);
     }
     outputs[n] = o;
 }

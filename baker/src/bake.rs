@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothParams, ClothTransmission, DiffuseLaw, FiberLobes};
-use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedGradient, PackedTransmission, Surface, Tile};
+use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedCurvature, PackedGradient, PackedTransmission, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -32,7 +32,7 @@ use serde::Serialize;
 use crate::fit::behind::{MIN_SAMPLES, behind_samples};
 use crate::fit::cluster_fit::{ClusterFit, ClusterFitOptions, FrameFitOptions, LEVEL0_LOBES, LOBE_PEAK_MAX, LobeTarget, Target, TargetRay, cap_peaks, fit_cluster, fit_cluster_framed, predict_lobes, refine_texel};
 use crate::fit::frames::FrameOffset;
-use crate::fit::gradient::{GradientOptions, refine_gradient_from, with_gradient};
+use crate::fit::gradient::{GradientOptions, Visibility, refine_gradient_from, with_gradient};
 use crate::fit::directions::{Pair, PairOptions, backlit_pairs, training_pairs};
 use crate::fit::energy::{LOBE_ALBEDO_MAX, cap_lobes, unit_albedos};
 use crate::fit::features::texel_features;
@@ -374,6 +374,8 @@ pub struct BakeReport {
 pub struct GradientReport {
     pub median: f32,
     pub p90: f32,
+    /// The median of |q| of the visibility curvature (format 1.15; none: not fitted).
+    pub curvature_median: Option<f32>,
     pub error_without: f64,
     pub block_error_without: f64,
 }
@@ -402,7 +404,7 @@ pub struct EnergyReport {
 struct RefinedTexel {
     params: ClothParams,
     albedo: f32,
-    gradient: [f32; 4],
+    vis: Visibility,
     without_gradient: Option<ClothParams>,
     peak_lowered: u32,
 }
@@ -572,7 +574,7 @@ pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], para
         table.push(p);
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(frames[j].n, frames[j].t, clusters.get(j).copied().unwrap_or(0) as u16)).collect();
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None, gradient: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
@@ -584,7 +586,7 @@ pub fn level0_per_texel(g: &Geometry, frames: &[TexelFrames], params: &[ClothPar
         let lobes: Vec<_> = p.lobes().iter().enumerate().map(|(l, lobe)| (*lobe, frames[j][l].n, frames[j][l].t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None, gradient: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// A level-0 texel's frame per lobe (lobe 0's also the diffuse term's).
@@ -828,7 +830,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     // Per-texel refinement of the linear parameters.
     let t = Instant::now();
     let mut energy = EnergyReport { lobe_albedo_max: LOBE_ALBEDO_MAX, worst_cluster_albedo, clusters_capped, ..Default::default() };
-    let mut texel_gradients: Option<Vec<[f32; 4]>> = None;
+    let mut texel_gradients: Option<Vec<Visibility>> = None;
     let mut gradient_report: Option<GradientReport> = None;
     let mut texel_lobes_peak_capped = 0;
     // Each texel's k_d, k_j (and visibility gradient) refined on its own samples from its
@@ -859,12 +861,12 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 match &options.gradient {
                     Some(go) => {
                         let pairs: Vec<(Vec3, Vec3)> = group.iter().map(|&i| dirs[samples[i as usize].dirs as usize]).collect();
-                        let (p, g) = refine_gradient_from(first, &t, &pairs, &params[c], ridge, go, options.fit.reading);
+                        let (p, vis) = refine_gradient_from(first, &t, &pairs, &params[c], ridge, go, options.fit.reading);
                         let (p, lowered) = peak(p);
                         let (p, albedo) = cap_lobes(&p, &unit[c]);
-                        RefinedTexel { params: p, albedo, gradient: g, without_gradient: Some(plain.0), peak_lowered: lowered }
+                        RefinedTexel { params: p, albedo, vis, without_gradient: Some(plain.0), peak_lowered: lowered }
                     }
-                    None => RefinedTexel { params: plain.0, albedo: plain.1, gradient: [0.0; 4], without_gradient: None, peak_lowered: lowered_first },
+                    None => RefinedTexel { params: plain.0, albedo: plain.1, vis: Visibility::default(), without_gradient: None, peak_lowered: lowered_first },
                 }
             })
             .collect()
@@ -881,17 +883,22 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
                 let plain: Vec<ClothParams> = refined.iter().map(|r| r.without_gradient.unwrap_or(r.params)).collect();
                 let predictions = predict_images(&samples, &|hit| &plain[hit], &geo_of, options.fit.reading, &training, texels, options.probe_rays);
                 let (error_without, block_error_without) = image_errors(&predictions, &training.images, nx, ny);
-                let mut size: Vec<f32> = refined.iter().map(|r| r.gradient.iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
-                size.sort_by(f32::total_cmp);
-                let q = |f: f64| size.get(((size.len() as f64 * f) as usize).min(size.len().saturating_sub(1))).copied().unwrap_or(0.0);
-                gradient_report = Some(GradientReport { median: q(0.5), p90: q(0.9), error_without, block_error_without });
-                texel_gradients = Some(refined.iter().map(|r| r.gradient).collect::<Vec<[f32; 4]>>());
+                let sorted = |f: &dyn Fn(&Visibility) -> f32| {
+                    let mut v: Vec<f32> = refined.iter().map(|r| f(&r.vis)).collect();
+                    v.sort_by(f32::total_cmp);
+                    v
+                };
+                let at = |v: &[f32], f: f64| v.get(((v.len() as f64 * f) as usize).min(v.len().saturating_sub(1))).copied().unwrap_or(0.0);
+                let size = sorted(&|v| v.g.iter().map(|x| x * x).sum::<f32>().sqrt());
+                let curvature_median = options.gradient.as_ref().is_some_and(|g| g.curvature).then(|| at(&sorted(&|v| v.q.iter().map(|x| x * x).sum::<f32>().sqrt()), 0.5));
+                gradient_report = Some(GradientReport { median: at(&size, 0.5), p90: at(&size, 0.9), curvature_median, error_without, block_error_without });
+                texel_gradients = Some(refined.iter().map(|r| r.vis).collect::<Vec<Visibility>>());
             }
             let refined: Vec<ClothParams> = refined.into_iter().map(|r| r.params).collect();
             let geo_of = |s: &Sample| match &texel_gradients {
                 Some(g) => {
                     let (wi, wo) = dirs[s.dirs as usize];
-                    with_gradient(geo_of(s), g[s.hit as usize], wi, wo)
+                    with_gradient(geo_of(s), &g[s.hit as usize], wi, wo)
                 }
                 None => geo_of(s),
             };
@@ -934,7 +941,9 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         None => level0_framed(&geometry, &lobe0_frames, &clusters, &params),
     };
     let mut model = HybridModel { tile, height, levels: vec![level], meta: meta(error as f32, note) };
-    model.levels[0].gradient = texel_gradients.as_ref().map(|g| g.iter().map(|g| PackedGradient::new(*g)).collect());
+    let curvature = options.gradient.as_ref().is_some_and(|g| g.curvature);
+    model.levels[0].gradient = texel_gradients.as_ref().map(|v| v.iter().map(|v| PackedGradient::new(v.g)).collect());
+    model.levels[0].curvature = texel_gradients.as_ref().filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect());
     if let Some(t) = &texel_transmission {
         model.levels[0].transmission = Some(t.iter().map(PackedTransmission::new).collect());
     }
@@ -1024,10 +1033,11 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
         if let (true, Some(ridge), Some(texel_now)) = (fo.refit_surface, options.per_texel_ridge, texel_params.as_ref()) {
             let t = Instant::now();
             let bar = begin_stage(progress, "surface behind the flyaways", 1);
-            let level_with = |params: &[ClothParams], gradients: Option<&Vec<[f32; 4]>>, from: &Level| Level {
+            let level_with = |params: &[ClothParams], vis: Option<&Vec<Visibility>>, from: &Level| Level {
                 flyaways: from.flyaways.clone(),
                 transmission: from.transmission.clone(),
-                gradient: gradients.map(|g| g.iter().map(|g| PackedGradient::new(*g)).collect()),
+                gradient: vis.map(|v| v.iter().map(|v| PackedGradient::new(v.g)).collect()),
+                curvature: vis.filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect()),
                 ..level0_per_texel(&geometry, &frames, params)
             };
             let black: Vec<ClothParams> = texel_now.iter().map(|p| ClothParams { kd: Vec3::ZERO, lobes: p.lobes.map(|l| ClothLobe { k: Vec3::ZERO, ..l }), ..*p }).collect();
@@ -1042,7 +1052,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             // A texel seen by too few rays keeps its first refinement (fit::behind::MIN_SAMPLES).
             let keep = |j: usize| seen[j] < MIN_SAMPLES;
             let refit_params: Vec<ClothParams> = (0..texels).map(|j| if keep(j) { texel_now[j] } else { refit[j].params }).collect();
-            let refit_gradients = texel_gradients.as_ref().map(|g| (0..texels).map(|j| if keep(j) { g[j] } else { refit[j].gradient }).collect::<Vec<[f32; 4]>>());
+            let refit_gradients = texel_gradients.as_ref().map(|g| (0..texels).map(|j| if keep(j) { g[j] } else { refit[j].vis }).collect::<Vec<Visibility>>());
             let mut candidate = model.clone();
             candidate.levels[0] = level_with(&refit_params, refit_gradients.as_ref(), &model.levels[0]);
             let measure = |m: &HybridModel| full_image_errors(m, &full, &full_training, jitter_seed, options.probe_rays, options.shadows).map_err(|e| BakeError::Flyaways(format!("measuring the surface refitted behind them: {e}")));

@@ -743,9 +743,9 @@ fn view_tilts_match_the_cpu_twin_and_change_the_coarse_levels() {
     assert_no_validation_errors(&device);
 }
 
-/// Texels' visibility gradients (format 1.12, read after the view tilts in binding 13):
-/// both twins agree near and far, under lights and under the sky, and the gradients
-/// change the image.
+/// Texels' visibility gradients (format 1.12, read after the view tilts in binding 13)
+/// and curvatures (format 1.15, after the gradients): both twins agree near and far,
+/// under lights and under the sky, and each changes the image.
 #[test]
 fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
     let device = device();
@@ -754,6 +754,8 @@ fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
     examples::add_view_tilts(&mut plain, 0.3, 4);
     let mut graded = plain.clone();
     examples::add_gradients(&mut graded, 5);
+    let mut curved = graded.clone();
+    examples::add_curvatures(&mut curved, 3);
     let lights = [Light::directional(Vec3::new(-0.4, 0.3, 0.7), Vec3::ONE), Light::Point { position: Vec3::new(0.5, 0.2, 0.9), intensity: Vec3::splat(1.2) }];
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
     let centre = Vec3::new(0.5, 0.5, 0.0);
@@ -771,6 +773,10 @@ fn visibility_gradients_match_the_cpu_twin_and_change_the_image() {
         let with = render(&graded, &case.camera, lights, &case.options).unwrap();
         let moved = relative_rmse(&with, &without).unwrap();
         assert!(moved > 0.02, "{}: the gradients moved the image by only {moved}", case.name);
+        assert_twins_agree(&format!("{} with curvatures", case.name), &compare(&pass, &curved, lights, case));
+        let bent = render(&curved, &case.camera, lights, &case.options).unwrap();
+        let moved = relative_rmse(&bent, &with).unwrap();
+        assert!(moved > 0.02, "{}: the curvatures moved the image by only {moved}", case.name);
     }
     assert_no_validation_errors(&device);
 }

@@ -80,7 +80,7 @@ fn shader_structs_have_the_rust_layout() {
     macro_rules! members {
         ($t:ty: $($f:ident),*) => { &[$((stringify!($f), offset_of!($t, $f))),*] };
     }
-    check(&r, "GpuLevel", members!(GpuLevel: dims, surface, texel_base, header_base, lobe_base, fly_nodes, fly_head_base, fly_node_base, fly_header_base, fly_lobe_base, voxel_depth, fly_edge, trans_base, tilt_base, spread_base, fly_gain, grad_base));
+    check(&r, "GpuLevel", members!(GpuLevel: dims, surface, texel_base, header_base, lobe_base, fly_nodes, fly_head_base, fly_node_base, fly_header_base, fly_lobe_base, voxel_depth, fly_edge, trans_base, tilt_base, spread_base, fly_gain, grad_base, curv_base));
     check(&r, "GpuQuadLevel", members!(GpuQuadLevel: dims, offset));
     check(&r, "GpuModelHeader", members!(GpuModelHeader: origin, size, texel, n, top_z, height_scale, level_count, quad_count, leaf_offset, flags, inv_texel, levels, quad));
     check(&r, "GpuCamera", members!(GpuCamera: origin, forward, right, up, half_extents, size));

@@ -11,7 +11,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use fabric_runtime::brdf::twin::SplitMix64;
-use fabric_runtime::brdf::{DiffuseLaw, cloth_diffuse_cosine, cloth_diffuse_env_factor, cloth_visibility_gradient};
+use fabric_runtime::brdf::{DiffuseLaw, cloth_diffuse_cosine, cloth_diffuse_env_factor, cloth_visibility, cloth_visibility_gradient};
 use fabric_runtime::cpu::flyaways::{FlyawayGrid, flyaway_opacity, visit_flyaways};
 use fabric_runtime::cpu::heightfield::{HeightTracer, HfTrace};
 use fabric_runtime::cpu::shading::{texel_response, volume_factor};
@@ -293,8 +293,11 @@ fn check(model: &HybridModel, periodic: bool, device: &CheckedDevice) {
                 let n = Vec3::new(e.a[1], e.b[0], 1.0).normalize();
                 let d = cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, n, wi, wo);
                 let h = cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, wo);
-                let m = cloth_visibility_gradient(e.u.map(f32::from_bits), wi, wo);
-                rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6)).max((m - gy.x).abs())
+                let g = e.u.map(f32::from_bits);
+                let m = cloth_visibility_gradient(g, wi, wo);
+                // With a curvature made from the same inputs (format 1.15; twin_eval.comp).
+                let v = cloth_visibility(g, [g[0], g[1], g[2] * g[3], g[2], g[3], g[0] * g[1]], wi, wo);
+                rel(vf, gx.x, 1e-6).max((op - gx.y).abs()).max(rel(d, gx.z, 1e-6)).max(rel(h, gx.w, 1e-6)).max((m - gy.x).abs()).max((v - gy.y).abs())
             }
         };
         // A NaN anywhere in the GPU's outputs is a mismatch: the max chains above drop NaN
@@ -344,8 +347,10 @@ fn every_include_agrees_with_its_rust_twin() {
     ls.meta.diffuse = DiffuseLaw::LommelSeeliger;
     ls.meta.reading = fabric_runtime::brdf::BrdfReading::Held;
     // With a visibility gradient on every level (format 1.12: read after the view tilts
-    // in binding 13) through texel_response.
+    // in binding 13) and a curvature (format 1.15: after the gradients) through
+    // texel_response.
     examples::add_view_tilts(&mut ls, 0.3, 5);
     examples::add_gradients(&mut ls, 7);
+    examples::add_curvatures(&mut ls, 3);
     check(&ls, true, &device);
 }

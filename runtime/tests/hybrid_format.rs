@@ -30,6 +30,14 @@ fn tilted_sample() -> HybridModel {
     m
 }
 
+/// The sample with a visibility gradient and curvature on every level (format 1.15).
+fn curvature_sample() -> HybridModel {
+    let mut m = gradient_sample();
+    examples::add_curvatures(&mut m, 2);
+    m.validate().expect("the curvature sample is valid");
+    m
+}
+
 /// The sample with a visibility gradient on every level (format 1.12).
 fn gradient_sample() -> HybridModel {
     let mut m = sample();
@@ -280,6 +288,40 @@ fn gradient_corruption_catalogue() {
         ("for a level that does not exist", |p| p.entry(SectionKind::Gradient, 2).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
     ];
     run_catalogue(&format::to_bytes(&gradient_sample()).unwrap(), cases);
+}
+
+#[test]
+fn curvatures_round_trip_and_a_reader_that_skips_them_reads_the_rest() {
+    let m = curvature_sample();
+    let bytes = format::to_bytes(&m).unwrap();
+    let back = format::read(&bytes).unwrap();
+    assert_eq!(back, m);
+    assert!(m.levels.iter().all(|l| l.curvature.as_ref().is_some_and(|q| q.len() == (l.width * l.height) as usize)));
+    let q = back.levels[0].texel_brdf(0, 0).curvature;
+    assert!((q[0] + 0.25).abs() < 1e-3 && (q[5] + 0.2).abs() < 1e-3, "texel (0, 0) decodes its curvature: {q:?}");
+    // Optional: a 1.14 reader skips the section and shades every texel with q = 0.
+    let mut parts = Parts::of(&bytes);
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Curvature as u32) {
+        assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
+        e.kind = 4003;
+    }
+    let plain = format::read(&parts.assemble()).unwrap();
+    assert_eq!(plain, gradient_sample());
+    assert_eq!(plain.levels[0].texel_brdf(0, 0).curvature, [0.0; 6]);
+}
+
+#[test]
+fn curvature_corruption_catalogue() {
+    type Edit = fn(&mut Parts);
+    let cases: Vec<(&str, Edit, Expect)> = vec![
+        ("NaN q_xx", |p| p.find(SectionKind::Curvature, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::CurvatureParam { field: "q_xx", level: 0, .. }))),
+        ("infinite q_cross", |p| p.find(SectionKind::Curvature, 1)[10..12].copy_from_slice(&0x7c00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::CurvatureParam { field: "q_cross", level: 1, .. }))),
+        ("q_xy = 3", |p| p.find(SectionKind::Curvature, 0)[4..6].copy_from_slice(&0x4200u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::CurvatureParam { field: "q_xy", .. }))),
+        ("one record short", |p| { let t = p.find(SectionKind::Curvature, 1); t.truncate(t.len() - 12) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "visibility curvature records", level: 1, .. }))),
+        ("not whole records", |p| p.find(SectionKind::Curvature, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "CURVATURE")),
+        ("for a level that does not exist", |p| p.entry(SectionKind::Curvature, 2).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
+    ];
+    run_catalogue(&format::to_bytes(&curvature_sample()).unwrap(), cases);
 }
 
 #[test]
@@ -777,7 +819,7 @@ fn fuzz_seeds_are_current() {
     let tile = fabric_runtime::hybrid::Tile { origin: glam::Vec2::ZERO, size: glam::Vec2::ONE, top_z: 1.0, height_scale: 0.5, voxel_depth: 0.125 };
     let mut small = examples::uniform_model(4, 4, 3, tile, |x, y| 0.1 + 0.2 * x * y, &params, glam::Vec3::Z, glam::Vec3::X).unwrap();
     examples::add_flyaways(&mut small, 0, &[(1, 2, fabric_runtime::hybrid::FlyawayInput { depth: 1, alpha: 1.0, tangent: glam::Vec3::Y, param: 0 })], &params).unwrap();
-    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("gradient.hyb", gradient_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
+    for (name, model) in [("sample.hyb", sample()), ("small.hyb", small), ("bsdf.hyb", bsdf_sample()), ("tilted.hyb", tilted_sample()), ("gradient.hyb", gradient_sample()), ("curvature.hyb", curvature_sample()), ("spread.hyb", spread_sample()), ("groups.hyb", group_sample()), ("gains.hyb", gain_sample()), ("compact.hyb", compact_sample()), ("diffuse_ls.hyb", {
         let mut m = sample();
         m.meta.diffuse = fabric_runtime::brdf::DiffuseLaw::LommelSeeliger;
         m

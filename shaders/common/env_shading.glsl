@@ -92,10 +92,11 @@ void env_group_add(inout EnvGroup g, vec3 axis, vec3 weight, float sigma) {
     g.sigma2 += l * sigma * sigma;
 }
 
-// The visibility gradient g at the group's mean direction (EnvGroup::mean_axis).
-float env_group_gradient(EnvGroup g, vec4 grad, vec3 wo) {
+// The visibility gradient g and curvature q at the group's mean direction
+// (EnvGroup::mean_axis).
+float env_group_gradient(EnvGroup g, vec4 grad, vec3 q0, vec3 q1, vec3 wo) {
     vec3 mean_axis = g.lum > 0.0 ? g.axis * (1.0 / g.lum) : vec3(0.0);
-    return cloth_visibility_gradient(grad, mean_axis, wo);
+    return cloth_visibility(grad, q0, q1, mean_axis, wo);
 }
 
 // The group's lookup; the group emptied.
@@ -117,8 +118,9 @@ vec3 env_group_flush(inout EnvGroup g) {
 // bounded reading, no Fresnel or shadowing, axes mirrored), else a reflection lobe;
 // `cylinder`: a flyaway's lobe under the cylinder law (EnvSide::Cylinder: the whole
 // circle of azimuths, shadowing and cosine at cos(phi/2), no falloff). Each group's
-// lookup is scaled by the visibility gradient `grad` at its mean direction.
-vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, bool through, float tau, bool cylinder, uint nodes, uint lookups, vec4 grad) {
+// lookup is scaled by the visibility gradient `grad` and curvature (q0, q1) at its mean
+// direction.
+vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint reading, bool volumetric, bool through, float tau, bool cylinder, uint nodes, uint lookups, vec4 grad, vec3 q0, vec3 q1) {
     vec3 k = min(max(lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
     if (max(max(k.x, k.y), k.z) <= 0.0) {
         return vec3(0.0);
@@ -189,13 +191,13 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
                 env_group_add(group, through ? cloth_mirror_z(wi) : wi, weight, sigma);
                 emitted += 1u;
                 if (emitted % per_group == 0u) {
-                    float m = env_group_gradient(group, grad, wo);
+                    float m = env_group_gradient(group, grad, q0, q1, wo);
                     sum += m * env_group_flush(group);
                 }
             }
         }
     }
-    float m = env_group_gradient(group, grad, wo);
+    float m = env_group_gradient(group, grad, q0, q1, wo);
     sum += m * env_group_flush(group);
     return sum;
 }
@@ -206,16 +208,19 @@ vec3 lobe_env(ClothLobe lobe, float eta, float a, ClothFrame f, vec3 wo, uint re
 vec3 texel_env_response(TexelRef r, Edit e, bool rotate, vec3 wo, uint reading, bool volumetric, uint diffuse, uint nodes, uint lookups) {
     EditedTexel t = edited_texel(r, e, rotate);
     vec4 grad = texel_gradient(r);
+    vec3 q0;
+    vec3 q1;
+    texel_curvature(r, q0, q1);
     vec3 resp = vec3(0.0);
     if (max(max(t.kd.x, t.kd.y), t.kd.z) > 0.0) {
         // The gradient at the cosine lobe's mean direction, (2/3) n_0.
-        float m = cloth_visibility_gradient(grad, t.n0 * (2.0 / 3.0), wo);
+        float m = cloth_visibility(grad, q0, q1, t.n0 * (2.0 / 3.0), wo);
         resp = t.kd * env_irradiance(t.n0) * ((volumetric ? volume_factor(t.n0, wo) : 1.0) * cloth_diffuse_env_factor(diffuse, wo) * m);
     }
     for (uint j = 0u; j < t.count; ++j) {
         ClothFrame f;
         ClothLobe lobe = edited_lobe(r, e, t, j, f);
-        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, false, 0.0, r.cylinder, nodes, lookups, grad);
+        resp += lobe_env(lobe, t.eta, t.a, f, wo, reading, volumetric, false, 0.0, r.cylinder, nodes, lookups, grad, q0, q1);
     }
     return resp;
 }
@@ -257,7 +262,7 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
     if (gap > 0.0) {
         resp += gap * env_blurred(-wo, 0.0);
     }
-    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, false, nodes, lookups, vec4(0.0));
+    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, false, nodes, lookups, vec4(0.0), vec3(0.0), vec3(0.0));
 }
 
 #endif // ENV_SHADING_GLSL

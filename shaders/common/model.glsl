@@ -51,6 +51,8 @@ struct GpuLevel {
     uint spread_base;   // first flyaway spread word in binding 6 (after the nodes), NO_NODE: none
     float fly_gain[9];  // opacity exponent gain at polar 0, 10, ... 80 degrees (format 1.9; 1: none)
     uint grad_base;     // first visibility gradient word in binding 13 (after the tilts), NO_NODE: none
+    uint curv_base;     // first visibility curvature word in binding 13 (format 1.15), NO_NODE: none
+    uint pad;
 };
 
 struct GpuQuadLevel {
@@ -180,6 +182,7 @@ struct TexelRef {
     // A flyaway whose lobes follow the cylinder law (cloth_cylinder_lobe; in_fiber_frame).
     bool cylinder;
     uint grad;          // its visibility gradient's first word in binding 13, NO_NODE: none
+    uint curv;          // its visibility curvature's first word in binding 13, NO_NODE: none
 };
 
 // Texel (i, j) of `level` (in range). Twin: Level::texel_brdf.
@@ -190,6 +193,7 @@ TexelRef texel_brdf(uint level, uint i, uint j) {
     r.lobe_base = l.lobe_base;
     r.trans = l.trans_base == NO_NODE ? NO_NODE : l.trans_base + index;
     r.grad = l.grad_base == NO_NODE ? NO_NODE : l.grad_base + 2u * index;
+    r.curv = l.curv_base == NO_NODE ? NO_NODE : l.curv_base + 3u * index;
     if (l.surface == GPU_SURFACE_CLUSTERED) {
         uvec2 t = clustered_texels[l.texel_base + index];
         r.header = l.header_base + (t.y >> 16);
@@ -216,6 +220,21 @@ vec4 texel_gradient(TexelRef r) {
     uint a = view_tilts[r.grad];
     uint b = view_tilts[r.grad + 1u];
     return vec4(f16_value(a), f16_value(a >> 16), f16_value(b), f16_value(b >> 16));
+}
+
+// Texel r's visibility curvature q (PackedCurvature of runtime/src/hybrid/lobe.rs;
+// Level::texel_brdf) as q0 = q[0..3], q1 = q[3..6]; zero where its level has none.
+void texel_curvature(TexelRef r, out vec3 q0, out vec3 q1) {
+    if (r.curv == NO_NODE) {
+        q0 = vec3(0.0);
+        q1 = vec3(0.0);
+        return;
+    }
+    uint a = view_tilts[r.curv];
+    uint b = view_tilts[r.curv + 1u];
+    uint c = view_tilts[r.curv + 2u];
+    q0 = vec3(f16_value(a), f16_value(a >> 16), f16_value(b));
+    q1 = vec3(f16_value(b >> 16), f16_value(c), f16_value(c >> 16));
 }
 
 // PackedViewTilt record `index` (runtime/src/hybrid/lobe.rs).

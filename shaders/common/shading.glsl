@@ -111,7 +111,10 @@ vec3 texel_response(TexelRef r, Edit e, bool rotate, vec3 wi, vec3 wo, uint read
             resp += cloth_lobe(lobe, t.eta, t.a, f, wi, wo, reading) * cos_i;
         }
     }
-    return resp * cloth_visibility_gradient(texel_gradient(r), wi, wo);
+    vec3 q0;
+    vec3 q1;
+    texel_curvature(r, q0, q1);
+    return resp * cloth_visibility(texel_gradient(r), q0, q1, wi, wo);
 }
 
 // The texel's transmission term and lobe 0's frame, edited as its lobes are
@@ -164,7 +167,7 @@ float volume_factor(vec3 wi, vec3 wo) {
 // `fiber` seen from wo.
 TexelRef in_fiber_frame(uint level, uint param, vec3 fiber, vec3 wo) {
     GpuLevel l = model.levels[level];
-    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE, false, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), model_fiber_cylinder(), NO_NODE);
+    return TexelRef(l.fly_header_base + param, l.fly_lobe_base, false, cloth_fiber_frame(fiber, wo), NO_NODE, false, vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), model_fiber_cylinder(), NO_NODE, NO_NODE);
 }
 
 // Visibility of a light from p (height-field shadow ray); counts step-limited rays.

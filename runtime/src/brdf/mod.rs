@@ -535,6 +535,34 @@ pub fn cloth_visibility_gradient(g: [f32; 4], wi: Vec3, wo: Vec3) -> f32 {
     (1.0 + c(g[0]) * wo.x + c(g[1]) * wo.y + c(g[2]) * wi.x + c(g[3]) * wi.y).max(0.0)
 }
 
+/// Largest |q| of one coefficient of a visibility curvature.
+pub const CURVATURE_MAX: f32 = 2.0;
+
+/// The six second-order terms of the directions' slant across the tile (format 1.15), each
+/// unchanged when ω_i and ω_o trade places: (ω_o,x² + ω_i,x², ω_o,y² + ω_i,y²,
+/// ω_o,x·ω_o,y + ω_i,x·ω_i,y, ω_o,x·ω_i,x, ω_o,y·ω_i,y, ω_o,x·ω_i,y + ω_o,y·ω_i,x).
+#[inline]
+pub fn cloth_curvature_terms(wi: Vec3, wo: Vec3) -> [f32; 6] {
+    [wo.x * wo.x + wi.x * wi.x, wo.y * wo.y + wi.y * wi.y, wo.x * wo.y + wi.x * wi.y, wo.x * wi.x, wo.y * wi.y, wo.x * wi.y + wo.y * wi.x]
+}
+
+/// A level-0 texel's visibility with its curvature (format 1.15): the gradient's
+/// first-order odd part plus an even second-order part q · [`cloth_curvature_terms`],
+/// max(1 + g·(ω_o,x, ω_o,y, ω_i,x, ω_i,y) + q·e(ω_i, ω_o), 0), each q clamped to
+/// ±[`CURVATURE_MAX`]. What the lobes' own angular form cannot say: that a yarn's
+/// highlight seen along the fibres (the plane of incidence along t) is brighter than
+/// across them by more than Fresnel and the shadowing exponent allow
+/// (baker/FIT_MEASUREMENTS.md, "The visibility curvature"). q = 0 is
+/// [`cloth_visibility_gradient`].
+#[inline]
+pub fn cloth_visibility(g: [f32; 4], q: [f32; 6], wi: Vec3, wo: Vec3) -> f32 {
+    let c = |x: f32| x.max(-GRADIENT_MAX).min(GRADIENT_MAX);
+    let d = |x: f32| x.max(-CURVATURE_MAX).min(CURVATURE_MAX);
+    let e = cloth_curvature_terms(wi, wo);
+    let even = d(q[0]) * e[0] + d(q[1]) * e[1] + d(q[2]) * e[2] + d(q[3]) * e[3] + d(q[4]) * e[4] + d(q[5]) * e[5];
+    (1.0 + c(g[0]) * wo.x + c(g[1]) * wo.y + c(g[2]) * wi.x + c(g[3]) * wi.y + even).max(0.0)
+}
+
 /// Largest optical-depth parameter τ of a transmission term.
 pub const TAU_MAX: f32 = 16.0;
 /// Smallest |cos| in the transmission's attenuation (caps 1/μ at 20).

@@ -38,7 +38,11 @@
 //! A texel's visibility gradient (`brdf::cloth_visibility_gradient`, linear in ω_i) is
 //! read at each lookup group's mean direction, and for the diffuse term at the cosine
 //! lobe's mean direction (2/3) n_0: exact for a constant map over n_0's whole hemisphere,
-//! an approximation where the map varies within a group or the tile plane cuts it.
+//! an approximation where the map varies within a group or the tile plane cuts it. Its
+//! curvature (format 1.15, `brdf::cloth_visibility`, quadratic in ω_i) is read at the same
+//! mean directions, which are shorter than a unit vector: the even terms in ω_i alone
+//! (ω_i,x², …) are underestimated there: over the diffuse term's cosine lobe about
+//! n_0 = ẑ, E[ω_i,x²] = 1/4, against 0 at its mean direction. An approximation.
 //!
 //! A flyaway's lobe under the cylinder law (format 1.11, `brdf::cloth_cylinder_lobe`)
 //! is cut the same way over the whole circle φ_i ∈ (−π, π), with R = k F c^a cos θ c,
@@ -79,7 +83,7 @@ use std::f32::consts::{FRAC_PI_2, PI};
 use glam::Vec3;
 
 use super::shading::volume_factor;
-use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility_gradient, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_held_height, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
+use crate::brdf::{BETA_MAX, BETA_MIN, BrdfReading, ClothFrame, ClothLobe, ClothTransmission, DiffuseLaw, K_MAX, TAU_MAX, cloth_angles, cloth_diffuse_env_factor, cloth_visibility, cloth_fresnel, cloth_gaussian, cloth_half_cos, cloth_held_height, cloth_mirror_z, cloth_openness, cloth_phi_falloff, cloth_shadowing, cloth_transmission_attenuation};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{EnvMap, PrefilteredEnv};
 
@@ -333,7 +337,7 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
     let mut r = Vec3::ZERO;
     if kd.max_element() > 0.0 {
         // The gradient at the cosine lobe's mean direction, (2/3) n_0.
-        let m = cloth_visibility_gradient(b.gradient, n0 * (2.0 / 3.0), wo);
+        let m = cloth_visibility(b.gradient, b.curvature, n0 * (2.0 / 3.0), wo);
         r += kd * env.irradiance(n0) * (if volumetric { volume_factor(n0, wo) } else { 1.0 } * cloth_diffuse_env_factor(diffuse, wo) * m);
     }
     for (lobe, frame) in p.lobes().iter().zip(&b.frames) {
@@ -342,11 +346,11 @@ pub fn texel_env_response(b: &TexelBrdf, wo: Vec3, reading: BrdfReading, volumet
         lobe_env_nodes(lobe, p.eta, p.a, frame, wo, reading, side, budget, |node, closes| {
             group.add(&node);
             if closes {
-                let m = cloth_visibility_gradient(b.gradient, group.mean_axis(), wo);
+                let m = cloth_visibility(b.gradient, b.curvature, group.mean_axis(), wo);
                 r += m * group.flush(env);
             }
         });
-        let m = cloth_visibility_gradient(b.gradient, group.mean_axis(), wo);
+        let m = cloth_visibility(b.gradient, b.curvature, group.mean_axis(), wo);
         r += m * group.flush(env);
     }
     r
@@ -444,7 +448,7 @@ mod tests {
     use crate::scene::{EnvMapOptions, Sky, direction_from_angles};
 
     fn texel(kd: Vec3, lobes: &[ClothLobe], n: Vec3, t: Vec3) -> TexelBrdf {
-        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES], transmission: Default::default(), gradient: [0.0; 4], cylinder: false }
+        TexelBrdf { params: ClothParams::new(kd, 1.46, 0.5, lobes), frames: [cloth_frame(n, t); crate::brdf::MAX_LOBES], transmission: Default::default(), gradient: [0.0; 4], curvature: [0.0; 6], cylinder: false }
     }
 
     #[test]

@@ -22,7 +22,7 @@
 
 use glam::Vec3;
 
-use crate::brdf::{BrdfReading, DiffuseLaw, FiberLobes, K_MAX, cloth_cylinder_lobe, cloth_diffuse_cosine, cloth_fiber_frame, cloth_lobe, cloth_transmission_response, cloth_visibility_gradient};
+use crate::brdf::{BrdfReading, DiffuseLaw, FiberLobes, K_MAX, cloth_cylinder_lobe, cloth_diffuse_cosine, cloth_fiber_frame, cloth_lobe, cloth_transmission_response, cloth_visibility};
 use crate::hybrid::TexelBrdf;
 use crate::scene::{Light, LightSample};
 
@@ -45,7 +45,7 @@ pub fn texel_response(b: &TexelBrdf, wi: Vec3, wo: Vec3, reading: BrdfReading, d
             r += cloth_lobe(lobe, p.eta, p.a, frame, wi, wo, reading) * cos_i;
         }
     }
-    r * cloth_visibility_gradient(b.gradient, wi, wo)
+    r * cloth_visibility(b.gradient, b.curvature, wi, wo)
 }
 
 /// Transmitted radiance toward `wo` per unit irradiance from `wi` on the other side of

@@ -56,6 +56,8 @@ pub enum ModelError {
     ViewTiltParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
     #[error("visibility gradient of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
     GradientParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
+    #[error("visibility curvature of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
+    CurvatureParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
     #[error("level 0 has a view tilt section; only coarse levels may (level 0 is seen through its own height field)")]
     ViewTiltAtLevel0,
     #[error("texel ({i}, {j}) of level {level} uses cluster {index}, but the table has {len}")]

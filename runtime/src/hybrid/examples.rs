@@ -72,7 +72,7 @@ pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f
             }
             Surface::PerTexel(table)
         };
-        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None });
+        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None });
     }
     let dims = [w, h, (tile.height_scale / tile.voxel_depth).round().max(1.0) as u32];
     let meta = example_meta(&tile, levels, dims);
@@ -132,7 +132,7 @@ pub fn sample_model() -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None });
     }
     let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
     let mut model = HybridModel { tile, height, levels, meta };
@@ -202,7 +202,7 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None });
     }
     // Level-0 flyaway voxels, then their downsampling.
     let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();
@@ -292,6 +292,25 @@ pub fn add_gradients(model: &mut HybridModel, cells: u32) {
             })
             .collect();
         l.gradient = Some(records);
+    }
+}
+
+/// Gives every level of `model` visibility curvatures (format 1.15) that differ per
+/// texel: q = (0.3, −0.2, 0.25, −0.4, 0.35, 0.1) and (−0.25, 0.4, −0.1, 0.3, −0.3, −0.2)
+/// in a checker of `cells` × `cells`, so that a renderer that ignores or misreads them
+/// shows it.
+pub fn add_curvatures(model: &mut HybridModel, cells: u32) {
+    use crate::hybrid::PackedCurvature;
+    for l in model.levels.iter_mut() {
+        let (w, h) = (l.width, l.height);
+        let records = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
+                PackedCurvature::new(if odd { [0.3, -0.2, 0.25, -0.4, 0.35, 0.1] } else { [-0.25, 0.4, -0.1, 0.3, -0.3, -0.2] })
+            })
+            .collect();
+        l.curvature = Some(records);
     }
 }
 

@@ -59,7 +59,7 @@ pub const GPU_SURFACE_CLUSTERED: u32 = 0;
 /// [`GpuLevel::surface`]: per texel a header whose lobes have their own frames.
 pub const GPU_SURFACE_PER_TEXEL: u32 = 1;
 
-/// Where one level's data sits in the arrays. 104 bytes.
+/// Where one level's data sits in the arrays. 112 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLevel {
@@ -100,6 +100,12 @@ pub struct GpuLevel {
     /// pairs) in binding 13, after the view tilt records, or [`crate::hybrid::NO_NODE`]
     /// where the level has none (format 1.12).
     pub grad_base: u32,
+    /// First word of this level's visibility curvature records (three words each, f16
+    /// pairs) in binding 13, after the gradient records, or [`crate::hybrid::NO_NODE`]
+    /// where the level has none (format 1.15).
+    pub curv_base: u32,
+    /// std430 rounds the struct to 8 bytes (its `dims`).
+    pub pad: u32,
 }
 
 /// One level of the min-depth quadtree. 16 bytes.
@@ -113,7 +119,7 @@ pub struct GpuQuadLevel {
     pub pad: u32,
 }
 
-/// The model's header: the tile, the flags, and where each level is. 2016 bytes.
+/// The model's header: the tile, the flags, and where each level is. 2144 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuModelHeader {
@@ -137,9 +143,9 @@ pub struct GpuModelHeader {
     pub quad: [GpuQuadLevel; GPU_MAX_QUAD_LEVELS],
 }
 
-const _: () = assert!(size_of::<GpuLevel>() == 104);
+const _: () = assert!(size_of::<GpuLevel>() == 112);
 const _: () = assert!(size_of::<GpuQuadLevel>() == 16);
-const _: () = assert!(size_of::<GpuModelHeader>() == 2016);
+const _: () = assert!(size_of::<GpuModelHeader>() == 2144);
 
 /// A model laid out for the GPU: every array as it is uploaded.
 #[derive(Clone, Debug)]
@@ -157,7 +163,8 @@ pub struct GpuModel {
     pub fly_spread_words: Vec<u32>,
     pub transmissions: Vec<PackedTransmission>,
     pub view_tilts: Vec<PackedViewTilt>,
-    /// Every level's visibility gradient records as words (two each), uploaded after
+    /// Every level's visibility gradient records as words (two each), then its curvature
+    /// records (three each, format 1.15), uploaded after
     /// `view_tilts` in binding 13 (format 1.12).
     pub gradient_words: Vec<u32>,
 }
@@ -286,14 +293,25 @@ impl GpuModel {
                 }
                 None => crate::hybrid::NO_NODE,
             };
+            g.curv_base = match &l.curvature {
+                Some(r) => {
+                    out.gradient_words.extend_from_slice(bytemuck::cast_slice(r));
+                    (out.gradient_words.len() - 3 * r.len()) as u32
+                }
+                None => crate::hybrid::NO_NODE,
+            };
             out.header.levels[k] = g;
         }
         let tilt_words = 3 * out.view_tilts.len() as u64;
         if tilt_words + out.gradient_words.len() as u64 >= u32::MAX as u64 {
             return Err(ModelError::Meta("view tilt and visibility gradient records: more words than the GPU layout's 32-bit indices reach".into()));
         }
-        for g in out.header.levels.iter_mut().take(model.levels.len()).filter(|g| g.grad_base != crate::hybrid::NO_NODE) {
-            g.grad_base += tilt_words as u32;
+        for g in out.header.levels.iter_mut().take(model.levels.len()) {
+            for base in [&mut g.grad_base, &mut g.curv_base] {
+                if *base != crate::hybrid::NO_NODE {
+                    *base += tilt_words as u32;
+                }
+            }
         }
         let node_words = 4 * out.fly_nodes.len() as u64;
         // The shaders index binding 6 by 32-bit word, NO_NODE excluded.
@@ -343,7 +361,7 @@ impl GpuModel {
     }
 
     /// Binding 13: the view tilt records of every coarse level that has them, then the
-    /// visibility gradient words of every level that has them (one zero record when
+    /// visibility gradient and curvature words of every level that has them (one zero record when
     /// neither).
     pub fn view_tilt_array(&self) -> (&'static str, Vec<u8>) {
         let mut b = bytemuck::cast_slice(&self.view_tilts).to_vec();

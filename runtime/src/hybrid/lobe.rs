@@ -20,7 +20,7 @@ use glam::Vec3;
 use super::error::{ModelError, TableKind};
 use super::packing::{f16_bits, f16_value, snorm8, snorm8_value, octahedral_decode, octahedral_encode, tangent_angle_decode, tangent_angle_encode};
 use crate::brdf::visible_normal::ViewTilt;
-use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, ETA_MAX, GRADIENT_MAX, OPENNESS_Q_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
+use crate::brdf::{A_MAX, BETA_MAX, BETA_MIN, ClothFrame, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, CURVATURE_MAX, ETA_MAX, GRADIENT_MAX, OPENNESS_Q_MAX, TAU_MAX, GAMMA_MAX, GAMMA_MIN, MAX_LOBES, cloth_frame};
 
 /// k_d, η, a and where a texel's (or cluster's) lobes are. 16 bytes.
 #[repr(C)]
@@ -194,7 +194,37 @@ impl PackedGradient {
     }
 }
 
+/// A texel's visibility curvature (format 1.15): q of [`crate::brdf::cloth_visibility`],
+/// the coefficients of [`crate::brdf::cloth_curvature_terms`] in order, f16 bits. 12 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedCurvature {
+    pub q: [u16; 6],
+}
+
+impl PackedCurvature {
+    /// Packs `q`, each coefficient clamped to ±[`CURVATURE_MAX`] (a non-finite one to 0).
+    pub fn new(q: [f32; 6]) -> PackedCurvature {
+        PackedCurvature { q: q.map(|v| f16_bits(if v.is_finite() { v.clamp(-CURVATURE_MAX, CURVATURE_MAX) } else { 0.0 })) }
+    }
+
+    pub fn decode(&self) -> [f32; 6] {
+        self.q.map(f16_value)
+    }
+
+    /// Checks one record (texel `texel` of level `level`): finite, within ±[`CURVATURE_MAX`].
+    pub fn validate(&self, level: usize, texel: usize) -> Result<(), ModelError> {
+        for (field, v) in ["q_xx", "q_yy", "q_xy", "q_ox_ix", "q_oy_iy", "q_cross"].into_iter().zip(self.decode()) {
+            if !(v.is_finite() && v.abs() <= CURVATURE_MAX) {
+                return Err(ModelError::CurvatureParam { level, texel, field, value: v, max: CURVATURE_MAX });
+            }
+        }
+        Ok(())
+    }
+}
+
 const _: () = assert!(core::mem::size_of::<PackedGradient>() == 8);
+const _: () = assert!(core::mem::size_of::<PackedCurvature>() == 12);
 const _: () = assert!(core::mem::size_of::<PackedViewTilt>() == 12);
 const _: () = assert!(core::mem::size_of::<PackedTransmission>() == 24);
 const _: () = assert!(core::mem::size_of::<BrdfHeader>() == 16);
@@ -273,6 +303,9 @@ pub struct TexelBrdf {
     /// The reflection's visibility gradient ([`crate::brdf::cloth_visibility_gradient`];
     /// zero where the level has none).
     pub gradient: [f32; 4],
+    /// The reflection's visibility curvature ([`crate::brdf::cloth_visibility`]; zero
+    /// where the level has none).
+    pub curvature: [f32; 6],
     /// A flyaway fibre whose lobes follow the cylinder law
     /// ([`crate::brdf::cloth_cylinder_lobe`]; set by `cpu::shading::in_fiber_frame`).
     pub cylinder: bool,
@@ -317,7 +350,7 @@ impl BrdfTable {
         for (j, lobe) in self.lobes[h.lobe_range()].iter().enumerate() {
             params.lobes[j] = lobe.lobe();
         }
-        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default(), gradient: [0.0; 4], cylinder: false }
+        TexelBrdf { params, frames: [frame; MAX_LOBES], transmission: ClothTransmission::default(), gradient: [0.0; 4], curvature: [0.0; 6], cylinder: false }
     }
 
     /// Entry `index` with each lobe in its own frame (per-texel encoding).
@@ -329,7 +362,7 @@ impl BrdfTable {
             params.lobes[j] = lobe.lobe();
             frames[j] = lobe.frame();
         }
-        TexelBrdf { params, frames, transmission: ClothTransmission::default(), gradient: [0.0; 4], cylinder: false }
+        TexelBrdf { params, frames, transmission: ClothTransmission::default(), gradient: [0.0; 4], curvature: [0.0; 6], cylinder: false }
     }
 
     /// Checks every header and lobe: counts and ranges, finite parameters in range.

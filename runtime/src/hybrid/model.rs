@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::{ModelError, TableKind};
 use super::flyaway::Flyaways;
-use super::lobe::{BrdfTable, ClusteredTexel, PackedGradient, PackedTransmission, PackedViewTilt, TexelBrdf};
+use super::lobe::{BrdfTable, ClusteredTexel, PackedCurvature, PackedGradient, PackedTransmission, PackedViewTilt, TexelBrdf};
 use super::packing::{unorm16, unorm16_value};
 use crate::brdf::BrdfReading;
 use crate::scene::Aabb;
@@ -160,6 +160,9 @@ pub struct Level {
     /// The visibility gradient per texel (x fastest), at any level (format 1.12,
     /// [`crate::brdf::cloth_visibility_gradient`]). `None`: M = 1 everywhere.
     pub gradient: Option<Vec<PackedGradient>>,
+    /// The visibility curvature per texel (x fastest), at any level as baked: level 0
+    /// (format 1.15, [`crate::brdf::cloth_visibility`]). `None`: q = 0 everywhere.
+    pub curvature: Option<Vec<PackedCurvature>>,
 }
 
 impl Level {
@@ -179,6 +182,9 @@ impl Level {
         if let Some(g) = &self.gradient {
             b.gradient = g[index].decode();
         }
+        if let Some(q) = &self.curvature {
+            b.curvature = q[index].decode();
+        }
         b
     }
 
@@ -195,6 +201,11 @@ impl Level {
     /// Bytes of the visibility gradient records in the file (0 without).
     pub fn gradient_bytes(&self) -> u64 {
         self.gradient.as_ref().map_or(0, |g| (g.len() * size_of::<PackedGradient>()) as u64)
+    }
+
+    /// Bytes of the visibility curvature records in the file (0 without).
+    pub fn curvature_bytes(&self) -> u64 {
+        self.curvature.as_ref().map_or(0, |q| (q.len() * size_of::<PackedCurvature>()) as u64)
     }
 
     /// Bytes of the transmission records in the file (0 without).
@@ -374,6 +385,14 @@ impl HybridModel {
                     return Err(ModelError::Length { what: "visibility gradient records", level, expected: texels, got: g.len() as u64 });
                 }
                 for (texel, r) in g.iter().enumerate() {
+                    r.validate(level, texel)?;
+                }
+            }
+            if let Some(q) = &l.curvature {
+                if q.len() as u64 != texels {
+                    return Err(ModelError::Length { what: "visibility curvature records", level, expected: texels, got: q.len() as u64 });
+                }
+                for (texel, r) in q.iter().enumerate() {
                     r.validate(level, texel)?;
                 }
             }

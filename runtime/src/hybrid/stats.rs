@@ -83,6 +83,10 @@ pub struct LevelStats {
     pub gradient_bytes: u64,
     /// The median of |g| = |(g_o, g_i)| over the texels (None: no gradient).
     pub gradient_median: Option<f32>,
+    /// Bytes of the visibility curvature records (format 1.15; 0: none).
+    pub curvature_bytes: u64,
+    /// The median of |q| over the texels (None: no curvature).
+    pub curvature_median: Option<f32>,
     pub fit_error: Option<f32>,
     /// "WxH".
     pub resolution: String,
@@ -215,7 +219,13 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             m.sort_by(f32::total_cmp);
             m[m.len() / 2]
         });
-        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes + st.gradient_bytes;
+        st.curvature_bytes = level.curvature_bytes();
+        st.curvature_median = level.curvature.as_ref().filter(|q| !q.is_empty()).map(|q| {
+            let mut m: Vec<f32> = q.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+            m.sort_by(f32::total_cmp);
+            m[m.len() / 2]
+        });
+        st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes + st.gradient_bytes + st.curvature_bytes;
         levels.push(st);
     }
     let payload_bytes = height_bytes + levels.iter().map(|l| l.bytes).sum::<u64>();

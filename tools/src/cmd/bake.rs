@@ -220,6 +220,14 @@ pub struct BakeArgs {
     /// from every side (the refinement of k_d and k_j alone).
     #[arg(long)]
     pub no_gradient: bool,
+    /// No visibility curvature per texel (format 1.15): the visibility's first-order
+    /// gradient alone, without its even second-order part.
+    #[arg(long)]
+    pub no_curvature: bool,
+    /// Ridge of the curvature's fit towards q = 0, relative to its normal equations' mean
+    /// diagonal (the gradient's is 0.05).
+    #[arg(long, default_value_t = 0.05)]
+    pub curvature_ridge: f64,
     /// Held-out views to measure after the bake (0 skips the check).
     #[arg(long, default_value_t = 8)]
     pub held_out: usize,
@@ -316,6 +324,13 @@ pub fn run(args: BakeArgs) -> Result<()> {
     options.lobe_peak_max = (args.lobe_peak_max > 0.0).then_some(args.lobe_peak_max);
     if args.no_gradient || args.clustered {
         options.gradient = None;
+    }
+    if !(args.curvature_ridge.is_finite() && args.curvature_ridge >= 0.0) {
+        bail!("--curvature-ridge {}: must be a finite number >= 0", args.curvature_ridge);
+    }
+    if let Some(g) = options.gradient.as_mut() {
+        g.curvature = !args.no_curvature;
+        g.curvature_ridge = args.curvature_ridge;
     }
     if args.flyaway_clusters == 0 || args.flyaway_clusters > 256 {
         bail!("--flyaway-clusters {}: must be in 1..=256", args.flyaway_clusters);
@@ -435,9 +450,11 @@ pub fn run(args: BakeArgs) -> Result<()> {
     }
     if let Some(g) = &r.gradient {
         println!(
-            "visibility gradient: |g| median {:.2}, p90 {:.2}; training error without it {:.2}% per texel, {:.2}% over 4x4 blocks",
+            "visibility gradient{}: |g| median {:.2}, p90 {:.2}{}; training error without it {:.2}% per texel, {:.2}% over 4x4 blocks",
+            if g.curvature_median.is_some() { " and curvature" } else { "" },
             g.median,
             g.p90,
+            g.curvature_median.map_or(String::new(), |q| format!(", |q| median {q:.2}")),
             100.0 * g.error_without,
             100.0 * g.block_error_without
         );

@@ -84,6 +84,9 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
         if let Some(m) = l.gradient_median {
             let _ = writeln!(s, "    visibility gradient per texel (format 1.12): |g| median {m:.2}; {}", mib(l.gradient_bytes));
         }
+        if let Some(m) = l.curvature_median {
+            let _ = writeln!(s, "    visibility curvature per texel (format 1.15): |q| median {m:.2}; {}", mib(l.curvature_bytes));
+        }
         if l.flyaway_nodes > 0 || l.flyaway_bytes > 0 {
             let _ = writeln!(s, "    flyaways: {} voxels in {} columns, longest list {}, alpha {}; {}", l.flyaway_nodes, l.flyaway_columns, l.flyaway_longest_list, range(&l.flyaway_alpha), mib(l.flyaway_bytes));
         }

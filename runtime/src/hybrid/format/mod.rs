@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 14;
+pub const VERSION_MINOR: u16 = 15;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -110,10 +110,12 @@ pub enum SectionKind {
     ViewTiltCompact = 50,
     /// Per level, optional (1.12): the visibility gradient per texel (8 bytes each).
     Gradient = 51,
+    /// Per level, optional (1.15): the visibility curvature per texel (12 bytes each).
+    Curvature = 52,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 21] = [
+    pub const ALL: [SectionKind; 22] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -135,6 +137,7 @@ impl SectionKind {
         SectionKind::ViewTilt,
         SectionKind::ViewTiltCompact,
         SectionKind::Gradient,
+        SectionKind::Curvature,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -169,6 +172,7 @@ impl SectionKind {
             SectionKind::SurfaceLobesCompact => "SURFACE_LOBES_COMPACT",
             SectionKind::ViewTiltCompact => "VIEW_TILT_COMPACT",
             SectionKind::Gradient => "GRADIENT",
+            SectionKind::Curvature => "CURVATURE",
         }
     }
 }

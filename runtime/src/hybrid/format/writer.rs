@@ -109,6 +109,10 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
         if let Some(g) = &l.gradient {
             out.push((SectionKind::Gradient, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(g))));
         }
+        // Optional: a 1.14 reader skips it and shades every texel as if q = 0.
+        if let Some(q) = &l.curvature {
+            out.push((SectionKind::Curvature, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(q))));
+        }
     }
     out
 }
