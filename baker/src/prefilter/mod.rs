@@ -31,10 +31,10 @@ use serde::Serialize;
 use fabric_runtime::brdf::MAX_LOBES;
 use fabric_runtime::brdf::BrdfReading;
 use fabric_runtime::cpu::heightfield::HeightTracer;
-use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z, cloth_visibility_gradient};
-use crate::fit::gradient::gradient_least_squares;
+use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z};
+use crate::fit::gradient::{Visibility, gradient_least_squares, visibility_least_squares};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
-use fabric_runtime::hybrid::{PackedGradient, PackedTransmission, TexelBrdf, decode_frame, encode_frame};
+use fabric_runtime::hybrid::{PackedCurvature, PackedGradient, PackedTransmission, TexelBrdf, decode_frame, encode_frame};
 use fabric_runtime::hybrid::compact;
 use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
@@ -240,8 +240,10 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     // A BSDF: the transmission term is prefiltered too, on the pairs with the light
     // mirrored below the sheet, against the plain mean of the footprint's level-0 terms.
     let bsdf = model.levels[0].transmission.is_some();
-    // Level 0's visibility gradients (format 1.12): the coarse levels fit their own.
+    // Level 0's visibility gradients (format 1.12): the coarse levels fit their own, and
+    // their own curvatures where level 0 has them (format 1.15).
     let graded = model.levels[0].gradient.is_some();
+    let curved = graded && model.levels[0].curvature.is_some();
     let backlit: Vec<Pair> = pairs[..fitted_pairs].iter().map(|&(wi, wo)| (cloth_mirror_z(wi), wo)).collect();
     let mut finer_trans: Option<Vec<Vec3>> = None;
     let np = pairs.len();
@@ -273,7 +275,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         // stride would alias with the weave's period).
         let sweep_stride = (lw * lh).div_ceil(LOBE_SWEEP_TEXELS).max(1) as u64;
         let in_sweep = |index: u32| mix64(((level as u64) << 32) | index as u64) % sweep_stride == 0;
-        let fits: Vec<(CoarseFit, [f32; 4], Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>, bool)> = (0..lw * lh)
+        let fits: Vec<(CoarseFit, Visibility, Vec<TargetAcc>, Option<(ClothTransmission, Vec<Vec3>, f64)>, bool)> = (0..lw * lh)
             .into_par_iter()
             .map(|index| {
                 let (i, j) = (index % lw, index / lw);
@@ -304,7 +306,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                 let fp = Footprint { candidates: &candidates, kd_normal, target: &target };
                 let fit_settings = if swept { &sweep_settings } else { &settings };
                 let fit = fit_footprint(&fp, &pairs, fit_settings);
-                let (fit, gradient) = if graded { graded_fit(&fp, &pairs, fit_settings, fit) } else { (fit, [0.0; 4]) };
+                let (fit, gradient) = if graded { graded_fit(&fp, &pairs, fit_settings, fit, curved) } else { (fit, Visibility::default()) };
                 let trans = bsdf.then(|| {
                     let mut t_acc = vec![Vec3::ZERO; nt];
                     for &(ci, cj, n) in &kids {
@@ -339,10 +341,14 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let mut trans_error = 0f64;
         let mut swept = 0usize;
         let mut gradients = Vec::with_capacity(if graded { fits.len() } else { 0 });
+        let mut curvatures = Vec::with_capacity(if curved { fits.len() } else { 0 });
         for (fit, gradient, acc, trans, in_sample) in fits {
             table.push_framed(fit.kd, fit.eta, fit.a, &fit.lobes);
             if graded {
-                gradients.push(PackedGradient::new(gradient));
+                gradients.push(PackedGradient::new(gradient.g));
+            }
+            if curved {
+                curvatures.push(PackedCurvature::new(gradient.q));
             }
             targets.extend(acc);
             if let Some((t, t_acc, e)) = trans {
@@ -370,7 +376,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             compact::quantize_table(&mut table);
             flyaways.iter_mut().for_each(compact::quantize_flyaway_nodes);
         }
-        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None, gradient: graded.then_some(gradients), curvature: None };
+        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), view_tilt: None, gradient: graded.then_some(gradients), curvature: curved.then_some(curvatures) };
         let t_level = Instant::now();
         let fitted = tilts.as_mut().map(|t| t.fit_level(model, level, &l, reading));
         report.view_tilt_seconds += t_level.elapsed().as_secs_f64();
@@ -486,33 +492,36 @@ const GRADIENT_ROUNDS: usize = 1;
 /// the target divided by M(g) ([`GRADIENT_ROUNDS`] times); kept if the product is
 /// closer to the target than `first`.
 /// The fit's error is then the relative RMS of R·M against the target over all pairs.
-fn graded_fit(fp: &Footprint, pairs: &[Pair], s: &FitSettings, first: CoarseFit) -> (CoarseFit, [f32; 4]) {
+/// With `curved` (level 0 has visibility curvatures, format 1.15) M has its curvature
+/// too, fitted with g (`fit::gradient::visibility_least_squares`).
+fn graded_fit(fp: &Footprint, pairs: &[Pair], s: &FitSettings, first: CoarseFit, curved: bool) -> (CoarseFit, Visibility) {
     let predicted = |f: &CoarseFit| -> Vec<Vec3> {
         let mut table = BrdfTable::new();
         table.push_framed(f.kd, f.eta, f.a, &f.lobes);
         let b = table.brdf_framed(0);
         pairs.iter().map(|&(wi, wo)| texel_response(&b, wi, wo, s.reading, s.diffuse)).collect()
     };
-    let error = |r: &[Vec3], g: [f32; 4]| -> f32 {
+    let error = |r: &[Vec3], v: &Visibility| -> f32 {
         let (mut d, mut t2) = (0f64, 0f64);
         for ((r, t), &(wi, wo)) in r.iter().zip(fp.target).zip(pairs) {
-            d += (*r * cloth_visibility_gradient(g, wi, wo) - *t).as_dvec3().length_squared();
+            d += (*r * v.at(wi, wo) - *t).as_dvec3().length_squared();
             t2 += t.as_dvec3().length_squared();
         }
         if t2 > 0.0 { (d / t2).sqrt() as f32 } else { 0.0 }
     };
     let r0 = predicted(&first);
-    let e0 = error(&r0, [0.0; 4]);
-    let mut best = (CoarseFit { error: e0, ..first }, [0.0; 4]);
+    let e0 = error(&r0, &Visibility::default());
+    let mut best = (CoarseFit { error: e0, ..first }, Visibility::default());
     let mut r = r0;
     for _ in 0..GRADIENT_ROUNDS {
-        let g = gradient_least_squares(r.iter().zip(fp.target).zip(pairs).map(|((r, t), &(wi, wo))| (*r, *t, wi, wo)), GRADIENT_RIDGE);
-        let even: Vec<Vec3> = fp.target.iter().zip(pairs).map(|(t, &(wi, wo))| *t / cloth_visibility_gradient(g, wi, wo).max(0.05)).collect();
+        let rows = r.iter().zip(fp.target).zip(pairs).map(|((r, t), &(wi, wo))| (*r, *t, wi, wo));
+        let v = if curved { visibility_least_squares(rows, GRADIENT_RIDGE, GRADIENT_RIDGE) } else { Visibility { g: gradient_least_squares(rows, GRADIENT_RIDGE), q: [0.0; 6] } };
+        let even: Vec<Vec3> = fp.target.iter().zip(pairs).map(|(t, &(wi, wo))| *t / v.at(wi, wo).max(0.05)).collect();
         let next = fit_footprint(&Footprint { target: &even, ..*fp }, pairs, s);
         r = predicted(&next);
-        let e = error(&r, g);
+        let e = error(&r, &v);
         if e < best.0.error {
-            best = (CoarseFit { error: e, ..next }, g);
+            best = (CoarseFit { error: e, ..next }, v);
         }
     }
     best

@@ -160,8 +160,8 @@ pub struct Level {
     /// The visibility gradient per texel (x fastest), at any level (format 1.12,
     /// [`crate::brdf::cloth_visibility_gradient`]). `None`: M = 1 everywhere.
     pub gradient: Option<Vec<PackedGradient>>,
-    /// The visibility curvature per texel (x fastest), at any level as baked: level 0
-    /// (format 1.15, [`crate::brdf::cloth_visibility`]). `None`: q = 0 everywhere.
+    /// The visibility curvature per texel (x fastest), at any level (format 1.15,
+    /// [`crate::brdf::cloth_visibility`]). `None`: q = 0 everywhere.
     pub curvature: Option<Vec<PackedCurvature>>,
 }
 
