@@ -283,16 +283,15 @@ pub fn add_view_tilts(model: &mut HybridModel, strength: f32, cells: u32) {
 pub fn add_gradients(model: &mut HybridModel, cells: u32) {
     use crate::hybrid::PackedGradient;
     for l in model.levels.iter_mut() {
-        let (w, h) = (l.width, l.height);
-        let records = (0..h)
-            .flat_map(|j| (0..w).map(move |i| (i, j)))
-            .map(|(i, j)| {
-                let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
-                PackedGradient::new(if odd { [0.4, -0.3, 0.25, 0.5] } else { [-0.2, 0.6, -0.5, 0.1] })
-            })
-            .collect();
-        l.gradient = Some(records);
+        l.gradient = Some(checker(l, cells, PackedGradient::new([0.4, -0.3, 0.25, 0.5]), PackedGradient::new([-0.2, 0.6, -0.5, 0.1])));
     }
+}
+
+/// One record per texel of `l` (x fastest): `odd` and `even` in a checker of `cells` ×
+/// `cells`.
+fn checker<T: Copy>(l: &Level, cells: u32, odd: T, even: T) -> Vec<T> {
+    let (w, h) = (l.width, l.height);
+    (0..h).flat_map(|j| (0..w).map(move |i| if ((i * cells / w) + (j * cells / h)) % 2 == 1 { odd } else { even })).collect()
 }
 
 /// Gives every level of `model` visibility curvatures (format 1.15) that differ per
@@ -302,15 +301,7 @@ pub fn add_gradients(model: &mut HybridModel, cells: u32) {
 pub fn add_curvatures(model: &mut HybridModel, cells: u32) {
     use crate::hybrid::PackedCurvature;
     for l in model.levels.iter_mut() {
-        let (w, h) = (l.width, l.height);
-        let records = (0..h)
-            .flat_map(|j| (0..w).map(move |i| (i, j)))
-            .map(|(i, j)| {
-                let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
-                PackedCurvature::new(if odd { [0.3, -0.2, 0.25, -0.4, 0.35, 0.1] } else { [-0.25, 0.4, -0.1, 0.3, -0.3, -0.2] })
-            })
-            .collect();
-        l.curvature = Some(records);
+        l.curvature = Some(checker(l, cells, PackedCurvature::new([0.3, -0.2, 0.25, -0.4, 0.35, 0.1]), PackedCurvature::new([-0.25, 0.4, -0.1, 0.3, -0.3, -0.2])));
     }
 }
 
