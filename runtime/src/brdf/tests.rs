@@ -242,6 +242,32 @@ fn brdf_test_vectors_are_current() {
             assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-6), "row {i}: stored {x}, now {y}");
         }
     }
+    assert_eq!(stored.shading.len(), fresh.shading.len());
+    for (i, (s, f)) in stored.shading.iter().zip(&fresh.shading).enumerate() {
+        // The stored inputs evaluate to the stored outputs, and the table is the generator's.
+        assert_eq!((s.n, s.t, s.wi, s.wo, s.g, s.q, s.openness), (f.n, f.t, f.wi, f.wo, f.g, f.q, f.openness), "shading row {i}");
+        assert_eq!((s.kdt, s.kt, s.beta_t, s.gamma_t, s.tau), (f.kdt, f.kt, f.beta_t, f.gamma_t, f.tau), "shading row {i}");
+        for (x, y) in s.outputs().iter().zip(s.reevaluate().outputs()) {
+            assert!(x.is_finite() && (x - y).abs() <= 1e-6 * y.abs().max(1e-6), "shading row {i}: stored {x}, now {y}");
+        }
+    }
+}
+
+#[test]
+fn shading_vectors_cover_every_branch() {
+    let rows = shading_vectors();
+    // Visibility clamped to 0 somewhere, above 1 somewhere; curvature changes it.
+    assert!(rows.iter().any(|r| r.visibility == 0.0) && rows.iter().any(|r| r.visibility > 1.0));
+    assert!(rows.iter().filter(|r| (r.visibility - r.visibility_gradient).abs() > 1e-3).count() > rows.len() / 2);
+    // Transmission only across the sheet, and there it is nonzero somewhere.
+    for r in &rows {
+        let across = r.wi[2] * r.wo[2] < 0.0;
+        assert!(across || r.transmission == [0.0; 3], "{r:?}");
+    }
+    assert!(rows.iter().filter(|r| r.transmission[0] > 0.0).count() >= 5);
+    // Lommel–Seeliger differs from Lambert, openness spans (0, 1).
+    assert!(rows.iter().any(|r| r.diffuse_cosine[1] > 1.5 * r.diffuse_cosine[0] && r.diffuse_cosine[0] > 0.0));
+    assert!(rows.iter().any(|r| r.openness_value > 0.1) && rows.iter().any(|r| r.openness_value > 0.0 && r.openness_value < 0.01));
 }
 
 #[test]

@@ -9,7 +9,10 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use super::{BrdfReading, ClothLobe, ClothParams, MAX_LOBES, cloth_brdf, cloth_cylinder_lobe, cloth_fiber_frame, cloth_frame, cloth_lobe};
+use super::{
+    BrdfReading, ClothLobe, ClothOpenness, ClothParams, ClothTransmission, DiffuseLaw, MAX_LOBES, cloth_brdf, cloth_cylinder_lobe, cloth_diffuse_cosine, cloth_diffuse_env_factor, cloth_fiber_frame, cloth_frame, cloth_lobe, cloth_openness,
+    cloth_transmission, cloth_visibility, cloth_visibility_gradient,
+};
 
 /// One evaluation request, laid out as `EvalInput` in `shaders/brdf_eval.comp`.
 #[repr(C)]
@@ -271,19 +274,146 @@ pub struct TestVectorLobe {
     pub gamma: f32,
 }
 
+/// One row of the file's second table: the per-texel factors around the BRDF that a
+/// renderer multiplies in (brdf.glsl's visibility, diffuse laws, openness and
+/// transmission), for one pair of directions.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShadingVector {
+    /// The texel's frame (as `TestVector`'s: `cloth_frame(n, t)` completes it).
+    pub n: [f32; 3],
+    pub t: [f32; 3],
+    pub wi: [f32; 3],
+    pub wo: [f32; 3],
+    /// Visibility gradient (g_o,x, g_o,y, g_i,x, g_i,y) and curvature (format 1.15's order).
+    pub g: [f32; 4],
+    pub q: [f32; 6],
+    /// Openness (o, q, a, b).
+    pub openness: [f32; 4],
+    /// Transmission: k_dt, k_t, β_t, γ_t, τ, in the frame (n, t).
+    pub kdt: [f32; 3],
+    pub kt: [f32; 3],
+    pub beta_t: f32,
+    pub gamma_t: f32,
+    pub tau: f32,
+    /// `cloth_visibility_gradient(g, wi, wo)`.
+    pub visibility_gradient: f32,
+    /// `cloth_visibility(g, q, wi, wo)` (GLSL: q split as q0 = q[0..3], q1 = q[3..6]).
+    pub visibility: f32,
+    /// `cloth_diffuse_cosine(law, normalize(n), wi, wo)`, Lambert then Lommel–Seeliger.
+    pub diffuse_cosine: [f32; 2],
+    /// `cloth_diffuse_env_factor(LOMMEL_SEELIGER, wo)`.
+    pub diffuse_env_factor: f32,
+    /// `cloth_openness(openness, wo)`.
+    pub openness_value: f32,
+    /// `cloth_transmission(transmission, cloth_frame(n, t), wi, wo)`.
+    pub transmission: [f32; 3],
+}
+
+impl ShadingVector {
+    /// The row for these inputs, its outputs evaluated by the Rust twin.
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate(n: Vec3, t: Vec3, wi: Vec3, wo: Vec3, g: [f32; 4], q: [f32; 6], gap: ClothOpenness, tr: ClothTransmission) -> ShadingVector {
+        let tr = ClothTransmission { gap, ..tr };
+        let nn = n.normalize_or(Vec3::Z);
+        ShadingVector {
+            n: n.to_array(),
+            t: t.to_array(),
+            wi: wi.to_array(),
+            wo: wo.to_array(),
+            g,
+            q,
+            openness: [gap.o, gap.q, gap.aniso[0], gap.aniso[1]],
+            kdt: tr.kd.to_array(),
+            kt: tr.lobe.k.to_array(),
+            beta_t: tr.lobe.beta,
+            gamma_t: tr.lobe.gamma,
+            tau: tr.tau,
+            visibility_gradient: cloth_visibility_gradient(g, wi, wo),
+            visibility: cloth_visibility(g, q, wi, wo),
+            diffuse_cosine: [cloth_diffuse_cosine(DiffuseLaw::Lambert, nn, wi, wo), cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, nn, wi, wo)],
+            diffuse_env_factor: cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, wo),
+            openness_value: cloth_openness(&gap, wo),
+            transmission: cloth_transmission(&tr, &cloth_frame(n, t), wi, wo).to_array(),
+        }
+    }
+
+    /// The same inputs evaluated again (what the table check compares).
+    pub fn reevaluate(&self) -> ShadingVector {
+        let v = |a: [f32; 3]| Vec3::from_array(a);
+        let gap = ClothOpenness { o: self.openness[0], q: self.openness[1], aniso: [self.openness[2], self.openness[3]] };
+        let tr = ClothTransmission { kd: v(self.kdt), lobe: ClothLobe { k: v(self.kt), beta: self.beta_t, gamma: self.gamma_t }, tau: self.tau, gap };
+        ShadingVector::evaluate(v(self.n), v(self.t), v(self.wi), v(self.wo), self.g, self.q, gap, tr)
+    }
+
+    /// The outputs, in one list.
+    pub fn outputs(&self) -> Vec<f32> {
+        let mut o = vec![self.visibility_gradient, self.visibility, self.diffuse_cosine[0], self.diffuse_cosine[1], self.diffuse_env_factor, self.openness_value];
+        o.extend(self.transmission);
+        o
+    }
+}
+
+/// The shading table: edge cases (straight up, grazing, coefficients past their clamps,
+/// directions on one side or across the sheet) and 40 random rows.
+pub fn shading_vectors() -> Vec<ShadingVector> {
+    let mut rng = SplitMix64(0x5ad1_0067);
+    let mut rows = Vec::new();
+    let tr0 = ClothTransmission { kd: Vec3::new(0.2, 0.1, 0.05), lobe: ClothLobe { k: Vec3::splat(0.8), beta: 0.2, gamma: 0.6 }, tau: 0.5, gap: ClothOpenness::default() };
+    let gap0 = ClothOpenness { o: 0.3, q: 2.0, aniso: [0.5, -0.25] };
+    let (g0, q0) = ([0.5, -0.3, 0.2, 0.4], [0.3, -0.2, 0.1, 0.6, -0.4, 0.2]);
+    let up = Vec3::Z;
+    let slant = Vec3::new(0.6, 0.0, 0.8);
+    let grazing = Vec3::new(0.0, 0.999_999_5, 0.001);
+    let below = Vec3::new(-0.3, 0.2, -0.932_737_9);
+    let edges: [(Vec3, Vec3, [f32; 4], [f32; 6]); 8] = [
+        (up, up, g0, q0),
+        (slant, slant, g0, q0),
+        (grazing, slant, g0, q0),
+        (slant, grazing, g0, q0),
+        (slant, below, g0, q0),
+        (below, slant, g0, q0),
+        (slant, Vec3::new(-0.6, 0.0, 0.8), [5.0, -5.0, 5.0, -5.0], [9.0, -9.0, 9.0, -9.0, 9.0, -9.0]),
+        (Vec3::new(0.8, 0.0, 0.6), Vec3::new(0.8, 0.0, 0.6), [-2.0, 0.0, -2.0, 0.0], [0.0; 6]),
+    ];
+    for (wi, wo, g, q) in edges {
+        rows.push(ShadingVector::evaluate(Vec3::new(0.1, -0.2, 1.0), Vec3::X, wi, wo, g, q, gap0, tr0));
+    }
+    // Parameters past their clamps: openness and τ.
+    let wild_gap = ClothOpenness { o: 2.0, q: 100.0, aniso: [3.0, -3.0] };
+    let wild_tr = ClothTransmission { kd: Vec3::splat(-1.0), lobe: ClothLobe { k: Vec3::splat(1e6), beta: 0.1, gamma: ClothLobe::GAMMA_OFF }, tau: 50.0, gap: wild_gap };
+    rows.push(ShadingVector::evaluate(Vec3::Z, Vec3::Y, slant, below, g0, q0, wild_gap, wild_tr));
+    for _ in 0..40 {
+        let n = rng.unit_vector() * 0.5 + Vec3::Z;
+        let t = rng.unit_vector();
+        let wi = rng.unit_vector();
+        let wo = if rng.next_f32() < 0.5 { rng.unit_vector() } else { Vec3::new(-wi.x, -wi.y, -wi.z) * 0.9 + rng.unit_vector() * 0.1 };
+        let wo = wo.normalize_or(Vec3::Z);
+        let g = std::array::from_fn(|_| rng.range(-2.5, 2.5));
+        let q = std::array::from_fn(|_| rng.range(-2.5, 2.5));
+        let gap = ClothOpenness { o: rng.range(0.0, 1.0), q: rng.log_range(0.01, 80.0), aniso: [rng.range(-1.2, 1.2), rng.range(-1.2, 1.2)] };
+        let lobe = ClothLobe { k: Vec3::new(rng.range(0.0, 2.0), rng.range(0.0, 2.0), rng.range(0.0, 2.0)), beta: rng.log_range(0.02, 1.0), gamma: if rng.next_f32() < 0.2 { ClothLobe::GAMMA_OFF } else { rng.log_range(0.05, 3.0) } };
+        let tr = ClothTransmission { kd: Vec3::new(rng.range(0.0, 0.5), rng.range(0.0, 0.5), rng.range(0.0, 0.5)), lobe, tau: rng.range(0.0, 4.0), gap };
+        rows.push(ShadingVector::evaluate(n, t, wi, wo, g, q, gap, tr));
+    }
+    rows
+}
+
 /// The file of test vectors: a header saying what it is, and the rows.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TestVectorFile {
     pub about: String,
     pub vectors: Vec<TestVector>,
+    /// The per-texel factors around the BRDF ([`ShadingVector`]).
+    pub shading: Vec<ShadingVector>,
 }
 
 impl TestVectorFile {
     /// JSON with one vector per line, for readable diffs.
     pub fn to_json(&self) -> String {
         let rows: Vec<String> = self.vectors.iter().map(|v| serde_json::to_string(v).unwrap_or_default()).collect();
+        let shading: Vec<String> = self.shading.iter().map(|v| serde_json::to_string(v).unwrap_or_default()).collect();
         let about = serde_json::to_string(&self.about).unwrap_or_default();
-        format!("{{\n\"about\": {about},\n\"vectors\": [\n{}\n]}}\n", rows.join(",\n"))
+        format!("{{\n\"about\": {about},\n\"vectors\": [\n{}\n],\n\"shading\": [\n{}\n]}}\n", rows.join(",\n"), shading.join(",\n"))
     }
 }
 
@@ -321,8 +451,12 @@ pub fn test_vector_file() -> TestVectorFile {
                 Each row: frame (n, t; not necessarily unit or orthogonal: cloth_frame completes it), wi (toward the light) and \
                 wo (toward the viewer), parameters, reading, and the outputs cloth_brdf, cloth_lobe(lobe 0), cloth_brdf in cloth_fiber_frame(t, wo) and cloth_cylinder_lobe(lobe 0) in that frame. \
                 The GLSL agrees with these to 1e-4 relative on lavapipe (99% of 131072 inputs within 1e-6); a port should too, using cloth_atan2 rather than its own asin/atan. \
+                The second table, shading, holds the factors a renderer multiplies in around the BRDF, per texel: cloth_visibility_gradient and cloth_visibility \
+                (gradient g, curvature q), cloth_diffuse_cosine for both laws (n normalized) and cloth_diffuse_env_factor (Lommel-Seeliger), cloth_openness and cloth_transmission \
+                (frame cloth_frame(n, t)), including directions across the sheet and parameters past their clamps. \
                 Regenerate with FABRIC_BLESS=1 cargo test -p fabric-runtime brdf_test_vectors."
             .into(),
         vectors: rows,
+        shading: shading_vectors(),
     }
 }
