@@ -178,7 +178,8 @@ pub struct PrefilterReport {
     pub tolerance: f32,
     pub levels: Vec<LevelReport>,
     pub seconds: f64,
-    /// Bytes of level 0 and of the coarse levels (surface, flyaways, transmission).
+    /// Bytes of level 0 and of the coarse levels (surface, flyaways, transmission, view
+    /// tilts, visibility gradients and curvatures).
     pub level0_bytes: u64,
     pub chain_bytes: u64,
     /// Time spent fitting the view tilts of all levels.
@@ -188,7 +189,7 @@ pub struct PrefilterReport {
 }
 
 fn level_bytes(l: &Level) -> u64 {
-    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size()) + l.transmission_bytes() + l.view_tilt_bytes()
+    l.surface_bytes() + l.flyaways.as_ref().map_or(0, |f| f.byte_size()) + l.transmission_bytes() + l.view_tilt_bytes() + l.gradient_bytes() + l.curvature_bytes()
 }
 
 /// Level-0 texels under texel (i, j) of level ℓ, along one axis of `n` texels.
