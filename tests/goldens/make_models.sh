@@ -6,9 +6,10 @@
 # them). Rerun after a change to the generator or the baker that should change the
 # goldens, then refresh the goldens deliberately:
 #   bash tests/goldens/make_models.sh && UPDATE_GOLDENS=1 cargo test -p fabric-tests --test screenshots
-# The committed models predate 2026-12-07's change of the surface fit's mask (they were
-# baked with everything above the surface run masked, `--mask above`, and without the
-# surface refit behind the flyaways); the renderer's goldens do not depend on it.
+# The committed models were remade at format 1.15 (2026-12-07) with the debug-profile
+# binary (opt-level 2), 221-261 s each: the surface fit's mask of that day and the
+# visibility curvature on every level. screenshots.rs checks that level 0 carries the
+# curvature, so a model left behind by a format change is caught.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --bin fabric
