@@ -310,10 +310,10 @@ pub struct ShadingVector {
 }
 
 impl ShadingVector {
-    /// The row for these inputs, its outputs evaluated by the Rust twin.
-    #[allow(clippy::too_many_arguments)]
-    pub fn evaluate(n: Vec3, t: Vec3, wi: Vec3, wo: Vec3, g: [f32; 4], q: [f32; 6], gap: ClothOpenness, tr: ClothTransmission) -> ShadingVector {
-        let tr = ClothTransmission { gap, ..tr };
+    /// The row for these inputs (the openness is `tr.gap`), its outputs evaluated by the
+    /// Rust twin.
+    pub fn evaluate(n: Vec3, t: Vec3, wi: Vec3, wo: Vec3, g: [f32; 4], q: [f32; 6], tr: ClothTransmission) -> ShadingVector {
+        let gap = tr.gap;
         let nn = n.normalize_or(Vec3::Z);
         ShadingVector {
             n: n.to_array(),
@@ -342,7 +342,7 @@ impl ShadingVector {
         let v = |a: [f32; 3]| Vec3::from_array(a);
         let gap = ClothOpenness { o: self.openness[0], q: self.openness[1], aniso: [self.openness[2], self.openness[3]] };
         let tr = ClothTransmission { kd: v(self.kdt), lobe: ClothLobe { k: v(self.kt), beta: self.beta_t, gamma: self.gamma_t }, tau: self.tau, gap };
-        ShadingVector::evaluate(v(self.n), v(self.t), v(self.wi), v(self.wo), self.g, self.q, gap, tr)
+        ShadingVector::evaluate(v(self.n), v(self.t), v(self.wi), v(self.wo), self.g, self.q, tr)
     }
 
     /// The outputs, in one list.
@@ -376,12 +376,12 @@ pub fn shading_vectors() -> Vec<ShadingVector> {
         (Vec3::new(0.8, 0.0, 0.6), Vec3::new(0.8, 0.0, 0.6), [-2.0, 0.0, -2.0, 0.0], [0.0; 6]),
     ];
     for (wi, wo, g, q) in edges {
-        rows.push(ShadingVector::evaluate(Vec3::new(0.1, -0.2, 1.0), Vec3::X, wi, wo, g, q, gap0, tr0));
+        rows.push(ShadingVector::evaluate(Vec3::new(0.1, -0.2, 1.0), Vec3::X, wi, wo, g, q, ClothTransmission { gap: gap0, ..tr0 }));
     }
     // Parameters past their clamps: openness and τ.
     let wild_gap = ClothOpenness { o: 2.0, q: 100.0, aniso: [3.0, -3.0] };
     let wild_tr = ClothTransmission { kd: Vec3::splat(-1.0), lobe: ClothLobe { k: Vec3::splat(1e6), beta: 0.1, gamma: ClothLobe::GAMMA_OFF }, tau: 50.0, gap: wild_gap };
-    rows.push(ShadingVector::evaluate(Vec3::Z, Vec3::Y, slant, below, g0, q0, wild_gap, wild_tr));
+    rows.push(ShadingVector::evaluate(Vec3::Z, Vec3::Y, slant, below, g0, q0, wild_tr));
     for _ in 0..40 {
         let n = rng.unit_vector() * 0.5 + Vec3::Z;
         let t = rng.unit_vector();
@@ -393,7 +393,7 @@ pub fn shading_vectors() -> Vec<ShadingVector> {
         let gap = ClothOpenness { o: rng.range(0.0, 1.0), q: rng.log_range(0.01, 80.0), aniso: [rng.range(-1.2, 1.2), rng.range(-1.2, 1.2)] };
         let lobe = ClothLobe { k: Vec3::new(rng.range(0.0, 2.0), rng.range(0.0, 2.0), rng.range(0.0, 2.0)), beta: rng.log_range(0.02, 1.0), gamma: if rng.next_f32() < 0.2 { ClothLobe::GAMMA_OFF } else { rng.log_range(0.05, 3.0) } };
         let tr = ClothTransmission { kd: Vec3::new(rng.range(0.0, 0.5), rng.range(0.0, 0.5), rng.range(0.0, 0.5)), lobe, tau: rng.range(0.0, 4.0), gap };
-        rows.push(ShadingVector::evaluate(n, t, wi, wo, g, q, gap, tr));
+        rows.push(ShadingVector::evaluate(n, t, wi, wo, g, q, tr));
     }
     rows
 }
