@@ -391,11 +391,13 @@ struct ClothOpenness {
     float q;
     vec2 aniso;
 };
+// grad: the transmission's visibility gradient (g_u, g_l) (format 1.16; zero without).
 struct ClothTransmission {
     vec3 kd;
     ClothLobe lobe;
     float tau;
     ClothOpenness gap;
+    vec4 grad;
 };
 
 // (cos 2phi, sin 2phi) of w's azimuth in the tile: an axis's, (0, 0) straight up or down.
@@ -427,16 +429,26 @@ float cloth_transmission_attenuation(float tau, float mu_i, float mu_o) {
     return exp(-t * (1.0 / mi + 1.0 / mo - 2.0));
 }
 
+// The transmission's visibility gradient (format 1.16): max(1 + g_u . u.xy + g_l . l.xy, 0)
+// with u the direction above the tile plane and l the one below, each coefficient clamped
+// to +-2: cloth_visibility_gradient with the viewer's side above. Symmetric in (wi, wo).
+float cloth_transmission_visibility(vec4 g, vec3 wi, vec3 wo) {
+    vec3 upper = wi.z > 0.0 ? wi : wo;
+    vec3 lower = wi.z > 0.0 ? wo : wi;
+    return cloth_visibility_gradient(g, lower, upper);
+}
+
 // w mirrored through the tile plane (z -> -z).
 vec3 cloth_mirror_z(vec3 w) {
     return vec3(w.x, w.y, -w.z);
 }
 
 // f_t(wi, wo) for directions on opposite sides of the tile plane (wi.z * wo.z < 0):
-//   f_t = (k_dt + k_t * G(theta_l* + theta_u; beta_t) * P(phi_l* + phi_u; gamma_t)) * A(tau)
+//   f_t = (k_dt + k_t * G(theta_l* + theta_u; beta_t) * P(phi_l* + phi_u; gamma_t)) * A(tau) * M_t
 // u = whichever direction is above the plane, l* = the other mirrored through it, angles
-// in frame f (the texel's lobe-0 frame); bounded shape, no Fresnel, no shadowing. Peaks
-// straight through (wo = -wi for n = z) and is symmetric in (wi, wo). Same side: 0.
+// in frame f (the texel's lobe-0 frame); bounded shape, no Fresnel, no shadowing; M_t =
+// cloth_transmission_visibility (format 1.16). Peaks straight through (wo = -wi for n = z)
+// and is symmetric in (wi, wo). Same side: 0.
 vec3 cloth_transmission(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
     if (!(wi.z * wo.z < 0.0)) {
         return vec3(0.0);
@@ -447,7 +459,7 @@ vec3 cloth_transmission(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
     ClothAngles al = cloth_angles(f, cloth_mirror_z(lower));
     vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
     vec3 k = min(max(t.lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
-    return (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED)) * cloth_transmission_attenuation(t.tau, wi.z, wo.z);
+    return (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, wi, wo));
 }
 
 // Transmitted radiance per unit irradiance: f_t * |wi.z| (the tile's cosine).

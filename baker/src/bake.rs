@@ -40,7 +40,7 @@ use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_cl
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::openness::{OpennessReport, fit_openness, measure_openness, openness_report, openness_views};
-use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission};
+use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission, refine_transmission_with_gradient};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
@@ -428,6 +428,11 @@ pub struct TransmissionReport {
     pub block_error: f64,
     /// Per backlit pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
     pub pair_errors: Vec<(f64, f64)>,
+    /// With the transmission gradient (format 1.16): the training error per pixel and
+    /// over 4×4 blocks of the same refinement without it (energy capped as the kept
+    /// one), and the median |g| over the texels; None without the gradient.
+    pub without_gradient: Option<(f64, f64)>,
+    pub gradient_median: Option<f32>,
     /// The largest transmitted albedo of any texel after the cap (`albedo_estimate`: an
     /// upper bound where below 1), and how many texels the cap scaled down.
     pub worst_albedo: f32,
@@ -574,7 +579,7 @@ pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], para
         table.push(p);
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(frames[j].n, frames[j].t, clusters.get(j).copied().unwrap_or(0) as u16)).collect();
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
@@ -586,7 +591,7 @@ pub fn level0_per_texel(g: &Geometry, frames: &[TexelFrames], params: &[ClothPar
         let lobes: Vec<_> = p.lobes().iter().enumerate().map(|(l, lobe)| (*lobe, frames[j][l].n, frames[j][l].t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, view_tilt: None, gradient: None, curvature: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// A level-0 texel's frame per lobe (lobe 0's also the diffuse term's).
@@ -946,6 +951,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     model.levels[0].curvature = texel_gradients.as_ref().filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect());
     if let Some(t) = &texel_transmission {
         model.levels[0].transmission = Some(t.iter().map(PackedTransmission::new).collect());
+        model.levels[0].transmission_gradient = t.iter().any(|t| t.grad != [0.0; 4]).then(|| t.iter().map(|t| PackedGradient::new(t.grad)).collect());
     }
 
     // 5. Flyaways, with the surface fixed.
@@ -1036,6 +1042,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let level_with = |params: &[ClothParams], vis: Option<&Vec<Visibility>>, from: &Level| Level {
                 flyaways: from.flyaways.clone(),
                 transmission: from.transmission.clone(),
+                transmission_gradient: from.transmission_gradient.clone(),
                 gradient: vis.map(|v| v.iter().map(|v| PackedGradient::new(v.g)).collect()),
                 curvature: vis.filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect()),
                 ..level0_per_texel(&geometry, &frames, params)
@@ -1203,17 +1210,33 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         images
     };
     let cluster_error = image_errors(&predict_all(&|j| fits[clusters[j] as usize].transmission), &training.images, nx, ny).0;
-    let refined: Vec<ClothTransmission> = match options.per_texel_ridge {
+    // Per texel: the k's refined, with the transmission gradient where asked (format
+    // 1.16), and the refinement without it (what the gradient bought).
+    let (refined, without): (Vec<ClothTransmission>, Option<Vec<ClothTransmission>>) = match options.per_texel_ridge {
         Some(ridge) => {
             let mut per_texel: Vec<Vec<TransTarget>> = vec![Vec::new(); texels];
             for &(hit, target, geo) in &samples {
                 per_texel[hit as usize].push(tt(geo, target));
             }
-            per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission(s, &fits[clusters[j] as usize].transmission, ridge)).collect()
+            let cluster_of = |j: usize| &fits[clusters[j] as usize].transmission;
+            let plain: Vec<ClothTransmission> = per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission(s, cluster_of(j), ridge)).collect();
+            match to.gradient_ridge {
+                Some(g) => (per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission_with_gradient(s, cluster_of(j), ridge, g)).collect(), Some(plain)),
+                None => (plain, None),
+            }
         }
-        None => (0..texels).map(|j| fits[clusters[j] as usize].transmission).collect(),
+        None => ((0..texels).map(|j| fits[clusters[j] as usize].transmission).collect(), None),
     };
     let capped: Vec<ClothTransmission> = refined.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
+    let without_gradient = without.map(|plain| {
+        let capped_plain: Vec<ClothTransmission> = plain.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
+        image_errors(&predict_all(&|j| capped_plain[j]), &training.images, nx, ny)
+    });
+    let gradient_median = without_gradient.is_some().then(|| {
+        let mut size: Vec<f32> = capped.iter().map(|t| t.grad.iter().map(|x| x * x).sum::<f32>().sqrt()).collect();
+        size.sort_by(f32::total_cmp);
+        size.get(size.len() / 2).copied().unwrap_or(0.0)
+    });
     let capped_texels = capped.iter().zip(&refined).filter(|(a, b)| a != b).count();
     let worst_albedo = capped.par_iter().zip(frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
     let predictions = predict_all(&|j| capped[j]);
@@ -1225,7 +1248,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
         .collect();
     let pair_errors = predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect();
-    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, worst_albedo, capped_texels, problems, openness: None, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
+    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, without_gradient, gradient_median, worst_albedo, capped_texels, problems, openness: None, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
     Ok((capped, report))
 }
 

@@ -138,11 +138,14 @@ uint model_diffuse() {
     return (model.flags & GPU_FLAG_DIFFUSE_LS) != 0u ? CLOTH_DIFFUSE_LOMMEL_SEELIGER : CLOTH_DIFFUSE_LAMBERT;
 }
 
-// PackedTransmission record `index` (runtime/src/hybrid/lobe.rs).
+// GpuTransmission record `index` (runtime/src/hybrid/gpu_layout.rs): the file's
+// PackedTransmission (runtime/src/hybrid/lobe.rs), then its transmission gradient
+// (format 1.16; zero without one).
 ClothTransmission packed_transmission(uint index) {
-    uvec2 a = transmissions[3u * index];
-    uvec2 b = transmissions[3u * index + 1u];
-    uvec2 c = transmissions[3u * index + 2u];
+    uvec2 a = transmissions[4u * index];
+    uvec2 b = transmissions[4u * index + 1u];
+    uvec2 c = transmissions[4u * index + 2u];
+    uvec2 d = transmissions[4u * index + 3u];
     ClothTransmission t;
     t.kd = vec3(f16_value(a.x), f16_value(a.x >> 16), f16_value(a.y));
     t.lobe.k = vec3(f16_value(a.y >> 16), f16_value(b.x), f16_value(b.x >> 16));
@@ -152,6 +155,7 @@ ClothTransmission packed_transmission(uint index) {
     t.gap.o = f16_value(c.x >> 16);
     t.gap.q = f16_value(c.y);
     t.gap.aniso = vec2(snorm8_value(c.y, 2u), snorm8_value(c.y, 3u));
+    t.grad = vec4(f16_value(d.x), f16_value(d.x >> 16), f16_value(d.y), f16_value(d.y >> 16));
     return t;
 }
 

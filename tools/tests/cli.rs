@@ -421,7 +421,7 @@ fn hybrid_models_render_under_an_environment_map() {
 fn render_shades_a_light_behind_a_bsdf() {
     use fabric_runtime::brdf::{ClothLobe, ClothTransmission};
     let mut m = fabric_runtime::hybrid::examples::synthetic_model(32, 5);
-    fabric_runtime::hybrid::examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::splat(0.05), lobe: ClothLobe { k: glam::Vec3::splat(0.2), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: Default::default() }, 4);
+    fabric_runtime::hybrid::examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::splat(0.05), lobe: ClothLobe { k: glam::Vec3::splat(0.2), beta: 0.4, gamma: 1.5 }, tau: 0.5, ..Default::default() }, 4);
     let model = tmp("bsdf.hyb");
     fabric_runtime::hybrid::format::write_file(&m, &model).unwrap();
     let mut images = Vec::new();

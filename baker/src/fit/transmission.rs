@@ -18,20 +18,39 @@
 //! path through the cloth is longest (baker/FIT_MEASUREMENTS.md, "Transmission"). The
 //! angles come from the runtime's own `cloth_angles` and `cloth_lobe_shape`, never a copy.
 //!
+//! The transmission gradient (format 1.16, `brdf::cloth_transmission_visibility`): at one
+//! texel per fibre, the light that comes through a gap is seen on the wall that faces the
+//! viewer and is lit through the gap from below, so what the volume shows along a ray
+//! that the model says meets a texel depends on the side the ray and the light come
+//! from, which a term even in their slant cannot say. Each texel's whole term is
+//! multiplied by M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y), 0) (u the viewer's side
+//! above the sheet, l the light's below), fitted as the reflection's gradient is
+//! (`fit::gradient`): alternating g by linear least squares for fixed k's and the k's by
+//! [`refine_transmission`] on the samples scaled by M_t
+//! ([`refine_transmission_with_gradient`]). baker/FIT_MEASUREMENTS.md, "Transmission",
+//! measures what it buys.
+//!
 //! Energy: a texel may not pass more than it receives. The transmitted albedo
 //! T(ω_i) = ∫ f_t(ω_i, ω_o) cos θ_o dω_o over the upper hemisphere is bounded by one for
 //! every ω_i ([`transmission_albedo`]); a fit whose worst T exceeds [`ALBEDO_MAX`] is
 //! scaled down to it ([`cap_energy`]).
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission, K_MAX, TAU_MAX, cloth_angles, cloth_lobe_shape, cloth_mirror_z, cloth_transmission, cloth_transmission_attenuation};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission, GRADIENT_MAX, K_MAX, TAU_MAX, cloth_angles, cloth_lobe_shape, cloth_mirror_z, cloth_transmission, cloth_transmission_attenuation, cloth_transmission_visibility};
 use glam::{DVec3, Vec3};
 
 use super::cluster_fit::LOBE_SUPPORT_MIN;
+use super::gradient::gradient_least_squares;
 use super::nnls::nnls_gram;
 use super::simplex::{NelderMead, nelder_mead_restarts};
 
 /// The largest transmitted albedo a fitted term may have.
 pub const ALBEDO_MAX: f32 = 1.0;
+
+/// The transmission gradient's ridge towards g = 0 (as the reflection's, `fit::gradient`).
+pub const GRADIENT_RIDGE: f64 = 0.05;
+
+/// Alternations of (g for fixed k, k for fixed g) of the transmission gradient.
+const GRADIENT_ROUNDS: usize = 4;
 
 /// The BSDF-independent factors of one backlit sample in the frame of the texel hit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -41,9 +60,10 @@ pub struct TransGeo {
     pub phi_sum: f32,
     /// |ω_i.z| (times the ray's weight, if any): the factor both terms carry.
     pub cos: f32,
-    /// ω_i.z and ω_o.z, for the attenuation.
-    pub mu_i: f32,
-    pub mu_o: f32,
+    /// ω_i and ω_o in tile space: their z for the attenuation, their slant for the
+    /// gradient.
+    pub wi: Vec3,
+    pub wo: Vec3,
 }
 
 impl TransGeo {
@@ -55,7 +75,7 @@ impl TransGeo {
         }
         let (upper, lower) = if wi.z > 0.0 { (wi, wo) } else { (wo, wi) };
         let (au, al) = (cloth_angles(frame, upper), cloth_angles(frame, cloth_mirror_z(lower)));
-        TransGeo { theta_sum: al.theta + au.theta, phi_sum: al.phi + au.phi, cos: wi.z.abs(), mu_i: wi.z, mu_o: wo.z }
+        TransGeo { theta_sum: al.theta + au.theta, phi_sum: al.phi + au.phi, cos: wi.z.abs(), wi, wo }
     }
 }
 
@@ -85,11 +105,15 @@ pub struct TransmissionFitOptions {
     /// Rays per texel per view that measure the openness (`fit::openness`; 0: none, the
     /// texels are closed).
     pub openness_rays: u32,
+    /// With the per-texel refinement, fit each texel's transmission gradient (format
+    /// 1.16) with this ridge towards g = 0, relative to the normal equations' mean
+    /// diagonal; `None`: none.
+    pub gradient_ridge: Option<f64>,
 }
 
 impl Default for TransmissionFitOptions {
     fn default() -> Self {
-        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0, openness_rays: 8 }
+        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0, openness_rays: 8, gradient_ridge: Some(GRADIENT_RIDGE) }
     }
 }
 
@@ -112,11 +136,11 @@ impl TransmissionFit {
 }
 
 /// The model's radiance for one sample: what `cpu::shading::texel_transmission_response`
-/// gives (times the sample's weight, in `g.cos`).
+/// gives (times the sample's weight, in `g.cos`), the gradient included.
 pub fn predict_transmission(t: &ClothTransmission, g: &TransGeo) -> Vec3 {
     let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    (kd + k * cloth_lobe_shape(g.theta_sum, g.phi_sum, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (g.cos * cloth_transmission_attenuation(t.tau, g.mu_i, g.mu_o))
+    (kd + k * cloth_lobe_shape(g.theta_sum, g.phi_sum, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (g.cos * cloth_transmission_attenuation(t.tau, g.wi.z, g.wo.z) * cloth_transmission_visibility(t.grad, g.wi, g.wo))
 }
 
 /// Gram matrix (2×2), Aᵀb per channel and bᵀb per channel of the basis [c, S·c],
@@ -126,7 +150,7 @@ fn normal_equations(samples: &[TransTarget], stride: usize, beta: f32, gamma: f3
     let (mut g, mut atb, mut btb) = ([0f64; 4], [[0f64; 2]; 3], [0f64; 3]);
     let mut best = 0f32;
     for s in samples.iter().step_by(stride.max(1)) {
-        let c = (s.geo.cos * cloth_transmission_attenuation(tau, s.geo.mu_i, s.geo.mu_o)) as f64;
+        let c = (s.geo.cos * cloth_transmission_attenuation(tau, s.geo.wi.z, s.geo.wo.z)) as f64;
         let shape = cloth_lobe_shape(s.geo.theta_sum, s.geo.phi_sum, beta, gamma, BrdfReading::Bounded);
         if c > 0.0 {
             best = best.max(shape);
@@ -205,7 +229,7 @@ pub fn fit_transmission(samples: &[TransTarget], o: &TransmissionFitOptions) -> 
         return fallback("linear solve failed".into());
     };
     let v = |j: usize| Vec3::new(k[0][j] as f32, k[1][j] as f32, k[2][j] as f32).clamp(Vec3::ZERO, Vec3::splat(K_MAX));
-    let transmission = ClothTransmission { kd: v(0), lobe: ClothLobe { k: v(1), beta, gamma }, tau, gap: Default::default() };
+    let transmission = ClothTransmission { kd: v(0), lobe: ClothLobe { k: v(1), beta, gamma }, tau, ..Default::default() };
     TransmissionFit { transmission, residual2, target2, samples: samples.len(), problem: None }
 }
 
@@ -233,6 +257,31 @@ pub fn refine_transmission(samples: &[TransTarget], cluster: &ClothTransmission,
         out.lobe.k[ch] = (sol.x[1] as f32).clamp(0.0, K_MAX);
     }
     out
+}
+
+/// Refines one texel's k's together with its transmission gradient (module docs):
+/// [`refine_transmission`] without it, then alternations of g by least squares for
+/// fixed k's (ridge `gradient_ridge`) and the k's on the samples scaled by M_t.
+/// (β_t, γ_t, τ) stay the cluster's.
+pub fn refine_transmission_with_gradient(samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64) -> ClothTransmission {
+    let plain = ClothTransmission { grad: [0.0; 4], ..*cluster };
+    let mut t = refine_transmission(samples, &plain, ridge);
+    if samples.is_empty() || plain.lobe.beta <= 0.0 {
+        return t;
+    }
+    for _ in 0..GRADIENT_ROUNDS {
+        let ungraded = ClothTransmission { grad: [0.0; 4], ..t };
+        // gradient_least_squares's features are (ω_o,x, ω_o,y, ω_i,x, ω_i,y): the side
+        // above as ω_o and the side below as ω_i give (g_u, g_l).
+        let rows = samples.iter().map(|s| {
+            let (upper, lower) = if s.geo.wi.z > 0.0 { (s.geo.wi, s.geo.wo) } else { (s.geo.wo, s.geo.wi) };
+            (predict_transmission(&ungraded, &s.geo), s.radiance, lower, upper)
+        });
+        let grad = gradient_least_squares(rows, gradient_ridge);
+        let scaled: Vec<TransTarget> = samples.iter().map(|s| TransTarget { geo: TransGeo { cos: s.geo.cos * cloth_transmission_visibility(grad, s.geo.wi, s.geo.wo), ..s.geo }, radiance: s.radiance }).collect();
+        t = ClothTransmission { grad, ..refine_transmission(&scaled, &plain, ridge) };
+    }
+    t
 }
 
 /// T(ω_i) = ∫ f_t(ω_i, ω_o) cos θ_o dω_o over the hemisphere opposite ω_i, RGB: the
@@ -268,11 +317,14 @@ pub fn worst_albedo(t: &ClothTransmission, frame: &ClothFrame) -> f32 {
     worst
 }
 
-/// A bound on the transmitted albedo with no quadrature: π·k_dt + 2π·k_t per channel
-/// (∫ G dθ ≤ 1 over θ, P ≤ 1 over φ ∈ (−π, π], both cosines ≤ 1; dω = cos θ dθ dφ).
+/// A bound on the transmitted albedo with no quadrature: (π·k_dt + 2π·k_t) per channel
+/// (∫ G dθ ≤ 1 over θ, P ≤ 1 over φ ∈ (−π, π], both cosines ≤ 1; dω = cos θ dθ dφ)
+/// times the gradient's largest M_t, 1 + |g_u| + |g_l| (|ω_xy| ≤ 1 on either side).
 pub fn albedo_bound(t: &ClothTransmission) -> f32 {
     let pi = std::f32::consts::PI;
-    (t.kd.max(Vec3::ZERO) * pi + t.lobe.k.max(Vec3::ZERO) * (2.0 * pi)).max_element()
+    let c = t.grad.map(|g| if g.is_finite() { g.clamp(-GRADIENT_MAX, GRADIENT_MAX) } else { 0.0 });
+    let m_max = 1.0 + c[0].hypot(c[1]) + c[2].hypot(c[3]);
+    (t.kd.max(Vec3::ZERO) * pi + t.lobe.k.max(Vec3::ZERO) * (2.0 * pi)).max_element() * m_max
 }
 
 /// The transmitted albedo as the bake reports it: the bound where it is within
@@ -289,7 +341,7 @@ pub fn cap_energy(t: &ClothTransmission, frame: &ClothFrame) -> ClothTransmissio
         return *t;
     }
     let s = ALBEDO_MAX / worst;
-    ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau, gap: t.gap }
+    ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, ..*t }
 }
 
 #[cfg(test)]
@@ -298,7 +350,7 @@ mod tests {
     use fabric_runtime::brdf::{cloth_frame, cloth_transmission_response};
 
     fn truth() -> ClothTransmission {
-        ClothTransmission { kd: Vec3::new(0.04, 0.03, 0.02), lobe: ClothLobe { k: Vec3::new(0.3, 0.25, 0.2), beta: 0.35, gamma: 1.2 }, tau: 0.6, gap: Default::default() }
+        ClothTransmission { kd: Vec3::new(0.04, 0.03, 0.02), lobe: ClothLobe { k: Vec3::new(0.3, 0.25, 0.2), beta: 0.35, gamma: 1.2 }, tau: 0.6, ..Default::default() }
     }
 
     /// Backlit samples of a known term over random pairs in random tilted frames.
@@ -358,6 +410,28 @@ mod tests {
     }
 
     #[test]
+    fn the_gradient_is_recovered_with_the_texels_ks() {
+        // A texel whose term is its cluster's brighter and scaled by a known M_t: the
+        // refinement with the gradient finds both, the one without cannot fit it.
+        let cluster = truth();
+        let g = [0.6, -0.4, -0.5, 0.3];
+        let texel = ClothTransmission { kd: cluster.kd * 1.3, lobe: ClothLobe { k: cluster.lobe.k * 0.7, ..cluster.lobe }, grad: g, ..cluster };
+        let samples = synthetic(&texel, 0.0, 1500);
+        let residual = |t: &ClothTransmission| {
+            let (d2, r2) = samples.iter().fold((0f64, 0f64), |(d, r), s| (d + (predict_transmission(t, &s.geo) - s.radiance).as_dvec3().length_squared(), r + s.radiance.as_dvec3().length_squared()));
+            (d2 / r2).sqrt()
+        };
+        let r = refine_transmission_with_gradient(&samples, &cluster, 1e-4, 1e-4);
+        assert!(r.grad.iter().zip(g).all(|(a, b)| (a - b).abs() < 0.03), "{:?}", r.grad);
+        assert!((r.kd - texel.kd).abs().max_element() < 2e-3 && (r.lobe.k - texel.lobe.k).abs().max_element() < 1e-2, "{r:?}");
+        assert!(residual(&r) < 0.01, "{}", residual(&r));
+        let plain = refine_transmission(&samples, &cluster, 1e-4);
+        assert!(residual(&plain) > 0.1, "without the gradient: {}", residual(&plain));
+        // Without samples, the cluster's own term (no gradient).
+        assert_eq!(refine_transmission_with_gradient(&[], &cluster, 1e-4, 0.05), cluster);
+    }
+
+    #[test]
     fn energy_is_bounded() {
         let frame = cloth_frame(Vec3::Z, Vec3::X);
         // A diffuse k_dt passes π·k_dt (k_d carries no 1/π): the quadrature knows it.
@@ -366,14 +440,15 @@ mod tests {
         assert!((albedo.x - 0.2 * std::f32::consts::PI).abs() < 2e-3, "{albedo}");
         // A term passing more than it gets is scaled down to an albedo of 1, and one
         // within bounds is left alone.
-        let bright = ClothTransmission { kd: Vec3::splat(0.5), lobe: ClothLobe { k: Vec3::splat(2.0), beta: 0.3, gamma: 0.0 }, tau: 0.0, gap: Default::default() };
+        let bright = ClothTransmission { kd: Vec3::splat(0.5), lobe: ClothLobe { k: Vec3::splat(2.0), beta: 0.3, gamma: 0.0 }, tau: 0.0, ..Default::default() };
         assert!(worst_albedo(&bright, &frame) > 1.5);
         let capped = cap_energy(&bright, &frame);
         assert!((worst_albedo(&capped, &frame) - 1.0).abs() < 1e-3, "{}", worst_albedo(&capped, &frame));
         assert_eq!(cap_energy(&truth(), &frame), truth());
         assert!(worst_albedo(&truth(), &frame) < 1.0);
-        // The cheap bound is a bound, on tilted frames too.
-        for t in [truth(), bright, diffuse] {
+        // The cheap bound is a bound, on tilted frames too, with a transmission gradient.
+        let graded = ClothTransmission { grad: [0.8, -0.5, -0.9, 0.4], ..truth() };
+        for t in [truth(), bright, diffuse, graded] {
             for n in [Vec3::Z, Vec3::new(0.5, 0.2, 1.0)] {
                 let f = cloth_frame(n, Vec3::new(1.0, 0.3, 0.0));
                 assert!(albedo_bound(&t) >= worst_albedo(&t, &f) * 0.999, "{t:?}");
@@ -387,7 +462,7 @@ mod tests {
         let black: Vec<TransTarget> = synthetic(&truth(), 0.0, 40).into_iter().map(|s| TransTarget { radiance: Vec3::ZERO, ..s }).collect();
         let fit = fit_transmission(&black, &TransmissionFitOptions::default());
         assert!(fit.problem.is_none() && fit.transmission.is_zero() && fit.residual2 == 0.0, "{fit:?}");
-        let nan = vec![TransTarget { geo: TransGeo { theta_sum: f32::NAN, phi_sum: 0.0, cos: 1.0, mu_i: -1.0, mu_o: 1.0 }, radiance: Vec3::ONE }];
+        let nan = vec![TransTarget { geo: TransGeo { theta_sum: f32::NAN, phi_sum: 0.0, cos: 1.0, wi: -Vec3::Z, wo: Vec3::Z }, radiance: Vec3::ONE }];
         assert!(fit_transmission(&nan, &TransmissionFitOptions::default()).problem.is_some());
     }
 }

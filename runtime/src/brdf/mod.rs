@@ -582,6 +582,10 @@ pub struct ClothTransmission {
     /// The light that crosses the texel unscattered, through the gaps between yarns
     /// (format 1.10; zero in older files).
     pub gap: ClothOpenness,
+    /// The transmission's visibility gradient (g_u,x, g_u,y, g_l,x, g_l,y) of
+    /// [`cloth_transmission_visibility`] (format 1.16; zero in older files and at levels
+    /// without one).
+    pub grad: [f32; 4],
 }
 
 impl ClothTransmission {
@@ -647,6 +651,21 @@ pub fn cloth_transmission_attenuation(tau: f32, mu_i: f32, mu_o: f32) -> f32 {
     (-tau * (1.0 / mi + 1.0 / mo - 2.0)).exp()
 }
 
+/// The transmission's visibility gradient (format 1.16): with u whichever of ω_i, ω_o
+/// lies above the tile plane and l the other,
+/// M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y), 0), each coefficient clamped to
+/// ±[`GRADIENT_MAX`] — [`cloth_visibility_gradient`] with the viewer's side above and the
+/// light's below, so that f_t stays symmetric in (ω_i, ω_o). What the volume shows
+/// along a ray that the model says meets a texel beside a gap depends on the side the
+/// ray and the light come from: the gap's light is seen on the wall that faces the
+/// viewer and is lit through the gap from below (baker/FIT_MEASUREMENTS.md,
+/// "Transmission"). 1 for g = 0 and for both directions along ±ẑ.
+#[inline]
+pub fn cloth_transmission_visibility(g: [f32; 4], wi: Vec3, wo: Vec3) -> f32 {
+    let (upper, lower) = if wi.z > 0.0 { (wi, wo) } else { (wo, wi) };
+    cloth_visibility_gradient(g, lower, upper)
+}
+
 /// `w` mirrored through the tile plane (z ↦ −z).
 #[inline]
 pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
@@ -655,14 +674,16 @@ pub fn cloth_mirror_z(w: Vec3) -> Vec3 {
 
 /// f_t(ω_i, ω_o) for directions on opposite sides of the tile plane (ω_i.z · ω_o.z < 0):
 /// ```text
-/// f_t = (k_dt + k_t · G(θ_l* + θ_u; β_t) · P(φ_l* + φ_u; γ_t)) · A(τ; ω_i.z, ω_o.z)
+/// f_t = (k_dt + k_t · G(θ_l* + θ_u; β_t) · P(φ_l* + φ_u; γ_t)) · A(τ; ω_i.z, ω_o.z) · M_t
 /// ```
 /// u is whichever of ω_i, ω_o lies above the plane, l* the other mirrored through it
-/// ([`cloth_mirror_z`]); angles in frame `f` (the texel's lobe-0 frame). The lobe is the
-/// reflection lobe's bounded shape (no Fresnel, no shadowing) seen from the mirrored
-/// side, so with n = ẑ it peaks at ω_o = −ω_i, the straight-through direction; A is
-/// [`cloth_transmission_attenuation`]. The value is symmetric in (ω_i, ω_o): reciprocal
-/// by construction. Directions on the same side give 0. RGB, finite, ≥ 0.
+/// ([`cloth_mirror_z`]); angles in frame `f` (the texel's lobe-0 frame); ω in tile
+/// space. The lobe is the reflection lobe's bounded shape (no Fresnel, no shadowing)
+/// seen from the mirrored side, so with n = ẑ it peaks at ω_o = −ω_i, the
+/// straight-through direction; A is [`cloth_transmission_attenuation`], M_t
+/// [`cloth_transmission_visibility`] (format 1.16). The value is symmetric in
+/// (ω_i, ω_o): reciprocal by construction. Directions on the same side give 0. RGB,
+/// finite, ≥ 0.
 #[inline]
 pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: Vec3) -> Vec3 {
     if !(wi.z * wo.z < 0.0) {
@@ -673,7 +694,7 @@ pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: V
     let al = cloth_angles(f, cloth_mirror_z(lower));
     let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * cloth_transmission_attenuation(t.tau, wi.z, wo.z)
+    (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, wi, wo))
 }
 
 /// Transmitted radiance per unit irradiance: f_t · |ω_i.z| (the tile's cosine, since the

@@ -14,7 +14,7 @@
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
 //! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spread_words`: per node of every level with spread records, its [`PackedAxisSpread`] (two 4-byte words) and its [`PackedAxisGroup`] (one word, zero without one): three words per node (`GpuLevel::spread_base`) |
-//! | 12      | `transmissions`      | [`PackedTransmission`] of every BSDF level (one zero record when none) |
+//! | 12      | `transmissions`      | [`GpuTransmission`] of every BSDF level: the file's [`PackedTransmission`] and its [`PackedGradient`] (format 1.16; zero where the level has none), 32 bytes (one zero record when none) |
 //! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
 //! Indices stored in the records stay as the file has them (local to their table or
@@ -25,7 +25,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::flyaway::{FlyawayNode, PackedAxisGroup, PackedAxisSpread};
-use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission, PackedViewTilt};
+use super::lobe::{BrdfHeader, ClusteredTexel, PackedGradient, PackedLobe, PackedTransmission, PackedViewTilt};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
 use crate::cpu::heightfield::HeightTracer;
@@ -161,7 +161,7 @@ pub struct GpuModel {
     /// (two words) and its second axis group (one word, zero where it has none; format
     /// 1.8), uploaded after `fly_nodes` in binding 6.
     pub fly_spread_words: Vec<u32>,
-    pub transmissions: Vec<PackedTransmission>,
+    pub transmissions: Vec<GpuTransmission>,
     pub view_tilts: Vec<PackedViewTilt>,
     /// Every level's visibility gradient records as words (two each), then its curvature
     /// records (three each, format 1.15), uploaded after
@@ -273,7 +273,8 @@ impl GpuModel {
             };
             g.trans_base = match &l.transmission {
                 Some(t) => {
-                    out.transmissions.extend_from_slice(t);
+                    let grad = |k: usize| l.transmission_gradient.as_ref().map_or(PackedGradient::default(), |g| g[k]);
+                    out.transmissions.extend(t.iter().enumerate().map(|(k, &record)| GpuTransmission { record, grad: grad(k) }));
                     (out.transmissions.len() - t.len()) as u32
                 }
                 None => crate::hybrid::NO_NODE,
@@ -357,7 +358,7 @@ impl GpuModel {
     /// Binding 12: the transmission records of every BSDF level (one zero record when
     /// the model has none).
     pub fn transmission_array(&self) -> (&'static str, Vec<u8>) {
-        ("transmission records", bytes(&self.transmissions, 24))
+        ("transmission records", bytes(&self.transmissions, 32))
     }
 
     /// Binding 13: the view tilt records of every coarse level that has them, then the
@@ -386,6 +387,18 @@ fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
     }
     b
 }
+
+/// A transmission record as binding 12 holds it: the file's record and the texel's
+/// transmission gradient (format 1.16; zero without one), four `uvec2` in GLSL
+/// (`packed_transmission` in shaders/common/model.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuTransmission {
+    pub record: PackedTransmission,
+    pub grad: PackedGradient,
+}
+
+const _: () = assert!(core::mem::size_of::<GpuTransmission>() == 32);
 
 /// Most lights one frame is drawn with.
 pub const GPU_MAX_LIGHTS: usize = 8;

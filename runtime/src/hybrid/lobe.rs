@@ -94,9 +94,11 @@ impl PackedTransmission {
         PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma), tau: f16_bits(t.tau), gap: [f16_bits(t.gap.o), f16_bits(t.gap.q)], gap_aniso: u16::from_le_bytes([snorm8(t.gap.aniso[0]), snorm8(t.gap.aniso[1])]) }
     }
 
+    /// The record's term; its gradient (format 1.16) is in its own section, zero here
+    /// (`Level::texel_brdf` fills it in).
     pub fn decode(&self) -> ClothTransmission {
         let v = |b: [u16; 3]| Vec3::new(f16_value(b[0]), f16_value(b[1]), f16_value(b[2]));
-        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]), aniso: self.gap_aniso.to_le_bytes().map(snorm8_value) } }
+        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]), aniso: self.gap_aniso.to_le_bytes().map(snorm8_value) }, grad: [0.0; 4] }
     }
 
     /// Checks one record (texel `texel` of level `level`): finite k's ≥ 0, β and γ in

@@ -261,6 +261,11 @@ pub struct BakeArgs {
     /// map below the sheet is seen straight through (format 1.10; 0: none).
     #[arg(long, default_value_t = 8)]
     pub openness_rays: u32,
+    /// With --bsdf, leave out the transmission gradient (format 1.16: each texel's
+    /// transmission scaled by the slant of the viewer and the light across the tile,
+    /// fitted with its k's; baker/FIT_MEASUREMENTS.md, "Transmission").
+    #[arg(long)]
+    pub no_transmission_gradient: bool,
     #[command(flatten)]
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
@@ -364,7 +369,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.bsdf_spp.is_some_and(|s| s < 2) {
         bail!("--bsdf-spp {}: need at least 2 (two halves)", args.bsdf_spp.unwrap_or(0));
     }
-    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, ..Default::default() });
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, gradient_ridge: (!args.no_transmission_gradient).then_some(fabric_baker::fit::transmission::GRADIENT_RIDGE), ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -526,6 +531,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
             t.render_seconds,
             t.fit_seconds
         );
+        if let (Some((e, b)), Some(g)) = (t.without_gradient, t.gradient_median) {
+            println!("  transmission gradient: median |g| {g:.3}; without it {:.2}% per texel, {:.2}% over 4x4 blocks", 100.0 * e, 100.0 * b);
+        }
         if let Some(o) = &t.openness {
             let at = |v: &[f64]| v.iter().map(|x| format!("{:.2}%", 100.0 * x)).collect::<Vec<_>>().join("/");
             let polar = o.polar_deg.iter().map(|d| format!("{d:.0}")).collect::<Vec<_>>().join("/");

@@ -28,7 +28,7 @@ pub const MAGIC: [u8; 8] = [0x89, b'H', b'Y', b'B', b'\r', b'\n', 0x1a, b'\n'];
 /// Readers reject other major versions.
 pub const VERSION_MAJOR: u16 = 1;
 /// Bumped when optional sections or trailing fields are added.
-pub const VERSION_MINOR: u16 = 15;
+pub const VERSION_MINOR: u16 = 16;
 /// Size of the header this version writes (readers accept larger ones).
 pub const HEADER_SIZE: usize = 64;
 /// Size of a section-table entry this version writes (readers accept larger ones).
@@ -112,10 +112,13 @@ pub enum SectionKind {
     Gradient = 51,
     /// Per level, optional (1.15): the visibility curvature per texel (12 bytes each).
     Curvature = 52,
+    /// Per level with TRANSMISSION, optional (1.16): the transmission's visibility
+    /// gradient per texel (8 bytes each).
+    TransmissionGradient = 53,
 }
 
 impl SectionKind {
-    pub const ALL: [SectionKind; 22] = [
+    pub const ALL: [SectionKind; 23] = [
         SectionKind::Model,
         SectionKind::Height,
         SectionKind::Meta,
@@ -138,6 +141,7 @@ impl SectionKind {
         SectionKind::ViewTiltCompact,
         SectionKind::Gradient,
         SectionKind::Curvature,
+        SectionKind::TransmissionGradient,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -173,6 +177,7 @@ impl SectionKind {
             SectionKind::ViewTiltCompact => "VIEW_TILT_COMPACT",
             SectionKind::Gradient => "GRADIENT",
             SectionKind::Curvature => "CURVATURE",
+            SectionKind::TransmissionGradient => "TRANSMISSION_GRADIENT",
         }
     }
 }
