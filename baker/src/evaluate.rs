@@ -57,6 +57,11 @@ pub struct ViewError {
     pub mean_ratio: f64,
     /// The reference's own relative error over 4×4 blocks (from its two halves).
     pub reference_noise: f64,
+    /// `block_error` net of the reference's noise, √(max(e² − noise², 0)) (the model's
+    /// image is noise-free: e² = truth² + noise²); what a converged reference would
+    /// read, as the yardstick is taken. Where the reference is noisy (backlit views at
+    /// 64 spp: 10–26%) it is the figure to read the model by.
+    pub block_error_net: f64,
     /// The yardstick: the reference lit from ω_i turned by [`ViewError::light_turn_deg`]
     /// (about a seeded random axis, same camera) against the reference, over 4×4 blocks,
     /// net of both renders' noise — how much the truth itself changes for a small error
@@ -159,7 +164,9 @@ pub fn evaluate_view(volume: &FabricVolume, medium: &TracedMedium, model: &Hybri
     let (pixel_error, block_error) = relative_errors(&model_image, &reference);
     let mean_ratio = model_image.mean() / reference.mean().max(1e-30);
     let (block16_error, _) = relative_errors(&block_mean(&model_image, 16), &block_mean(&reference, 16));
-    let e = ViewError { pair: *pair, kind, pixel_error, block_error, block16_error, mean_ratio, reference_noise: half_noise(&a, &b), light_turned_error, light_turn_deg, reference_seconds, model_seconds };
+    let reference_noise = half_noise(&a, &b);
+    let block_error_net = (block_error * block_error - reference_noise * reference_noise).max(0.0).sqrt();
+    let e = ViewError { pair: *pair, kind, pixel_error, block_error, block16_error, mean_ratio, reference_noise, block_error_net, light_turned_error, light_turn_deg, reference_seconds, model_seconds };
     Ok((e, ViewImages { reference, model: model_image }))
 }
 

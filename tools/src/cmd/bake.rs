@@ -266,6 +266,10 @@ pub struct BakeArgs {
     /// fitted with its k's; baker/FIT_MEASUREMENTS.md, "Transmission").
     #[arg(long)]
     pub no_transmission_gradient: bool,
+    /// Ridge of the transmission gradient's fit towards g = 0, relative to its normal
+    /// equations' mean diagonal.
+    #[arg(long, default_value_t = fabric_baker::fit::transmission::GRADIENT_RIDGE)]
+    pub transmission_gradient_ridge: f64,
     #[command(flatten)]
     pub prefilter: crate::cmd::prefilter::PrefilterArgs,
 }
@@ -330,6 +334,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.no_gradient || args.clustered {
         options.gradient = None;
     }
+    if !(args.transmission_gradient_ridge.is_finite() && args.transmission_gradient_ridge >= 0.0) {
+        bail!("--transmission-gradient-ridge {}: must be a finite number >= 0", args.transmission_gradient_ridge);
+    }
     if !(args.curvature_ridge.is_finite() && args.curvature_ridge >= 0.0) {
         bail!("--curvature-ridge {}: must be a finite number >= 0", args.curvature_ridge);
     }
@@ -369,7 +376,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.bsdf_spp.is_some_and(|s| s < 2) {
         bail!("--bsdf-spp {}: need at least 2 (two halves)", args.bsdf_spp.unwrap_or(0));
     }
-    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, gradient_ridge: (!args.no_transmission_gradient).then_some(fabric_baker::fit::transmission::GRADIENT_RIDGE), ..Default::default() });
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, gradient_ridge: (!args.no_transmission_gradient).then_some(args.transmission_gradient_ridge), ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -595,7 +602,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
         println!("held-out views (model vs reference, relative RMSE):");
         for (v, e) in views.iter().enumerate() {
             println!(
-                "  view {v} {:?}{} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%{})",
+                "  view {v} {:?}{} wi θ {:>4.1}° wo θ {:>4.1}°: {:>5.1}% per 4x4 block, {:>5.1}% per pixel, {:>5.1}% per 16x16, mean ratio {:.3} (reference noise {:.1}%, net of it {:.1}%{})",
                 e.kind,
                 if e.pair.wi.z < 0.0 { " backlit" } else { "" },
                 e.pair.wi.z.acos().to_degrees(),
@@ -605,6 +612,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
                 100.0 * e.block16_error,
                 e.mean_ratio,
                 100.0 * e.reference_noise,
+                100.0 * e.block_error_net,
                 e.light_turned_error.map(|t| format!("; the reference lit {:.0}° off: {:.1}%", e.light_turn_deg, 100.0 * t)).unwrap_or_default()
             );
         }
@@ -615,7 +623,9 @@ pub fn run(args: BakeArgs) -> Result<()> {
             }
             let worst = of.iter().copied().fold(0.0, f64::max);
             let mean = of.iter().sum::<f64>() / of.len() as f64;
-            println!("{name}: mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, pictures.display());
+            let net: Vec<f64> = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).map(|e| e.block_error_net).collect();
+            let net_mean = net.iter().sum::<f64>() / net.len() as f64;
+            println!("{name}: mean {:.1}%, worst {:.1}%; net of the references' noise mean {:.1}%, worst {:.1}% (pictures in {})", 100.0 * mean, 100.0 * worst, 100.0 * net_mean, 100.0 * net.iter().copied().fold(0.0, f64::max), pictures.display());
             // A reference is converged for a 10% bar when its two halves differ by at most
             // a third of it over the same blocks (‖A − B‖/‖M‖ = 2 × the mean's noise).
             let halves = views.iter().filter(|e| (e.pair.wi.z < 0.0) == lit).map(|e| 2.0 * e.reference_noise).fold(0.0, f64::max);
