@@ -77,6 +77,9 @@ pub struct LevelStats {
     /// o > 0 (format 1.10; None: reflection only).
     pub openness: Option<Range>,
     pub open_texels: Option<f64>,
+    /// The median of the transmission gradient's |g| = |(g_u, g_l)| over the texels
+    /// (format 1.16; None: none).
+    pub transmission_gradient_median: Option<f32>,
     /// Bytes of the view tilt records (0: none, as at level 0).
     pub view_tilt_bytes: u64,
     /// Bytes of the visibility gradient records (format 1.12; 0: none).
@@ -212,6 +215,11 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.openness = Some(o.range());
             st.open_texels = Some(t.iter().filter(|r| r.decode().gap.o > 0.0).count() as f64 / t.len().max(1) as f64);
         }
+        st.transmission_gradient_median = level.transmission_gradient.as_ref().filter(|g| !g.is_empty()).map(|g| {
+            let mut m: Vec<f32> = g.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+            m.sort_by(f32::total_cmp);
+            m[m.len() / 2]
+        });
         st.view_tilt_bytes = level.view_tilt_bytes();
         st.gradient_bytes = level.gradient_bytes();
         st.gradient_median = level.gradient.as_ref().filter(|g| !g.is_empty()).map(|g| {

@@ -80,6 +80,9 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
             if let (Some(o), Some(f)) = (&l.openness, l.open_texels) {
                 let _ = writeln!(s, "    openness straight down (the gaps between yarns): {} over texels, {:.1}% of texels open", range(o), 100.0 * f);
             }
+            if let Some(m) = l.transmission_gradient_median {
+                let _ = writeln!(s, "    transmission gradient per texel (format 1.16): |g| median {m:.2} (counted in the transmission's bytes)");
+            }
         }
         if let Some(m) = l.gradient_median {
             let _ = writeln!(s, "    visibility gradient per texel (format 1.12): |g| median {m:.2}; {}", mib(l.gradient_bytes));
