@@ -138,6 +138,14 @@ pub fn luminance(v: glam::Vec3) -> f32 {
     0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z
 }
 
+/// The median Euclidean norm of per-texel coefficient vectors (gradients, curvatures);
+/// None for none.
+fn median_norm<const N: usize>(rows: impl Iterator<Item = [f32; N]>) -> Option<f32> {
+    let mut m: Vec<f32> = rows.map(|r| r.iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
+    m.sort_by(f32::total_cmp);
+    m.get(m.len() / 2).copied()
+}
+
 /// Statistics of a (validated) model.
 pub fn model_stats(m: &HybridModel) -> ModelStats {
     let mut depth = Acc::default();
@@ -215,24 +223,12 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.openness = Some(o.range());
             st.open_texels = Some(t.iter().filter(|r| r.decode().gap.o > 0.0).count() as f64 / t.len().max(1) as f64);
         }
-        st.transmission_gradient_median = level.transmission_gradient.as_ref().filter(|g| !g.is_empty()).map(|g| {
-            let mut m: Vec<f32> = g.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
-            m.sort_by(f32::total_cmp);
-            m[m.len() / 2]
-        });
+        st.transmission_gradient_median = level.transmission_gradient.as_ref().and_then(|g| median_norm(g.iter().map(|r| r.decode())));
         st.view_tilt_bytes = level.view_tilt_bytes();
         st.gradient_bytes = level.gradient_bytes();
-        st.gradient_median = level.gradient.as_ref().filter(|g| !g.is_empty()).map(|g| {
-            let mut m: Vec<f32> = g.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
-            m.sort_by(f32::total_cmp);
-            m[m.len() / 2]
-        });
+        st.gradient_median = level.gradient.as_ref().and_then(|g| median_norm(g.iter().map(|r| r.decode())));
         st.curvature_bytes = level.curvature_bytes();
-        st.curvature_median = level.curvature.as_ref().filter(|q| !q.is_empty()).map(|q| {
-            let mut m: Vec<f32> = q.iter().map(|r| r.decode().iter().map(|v| v * v).sum::<f32>().sqrt()).collect();
-            m.sort_by(f32::total_cmp);
-            m[m.len() / 2]
-        });
+        st.curvature_median = level.curvature.as_ref().and_then(|q| median_norm(q.iter().map(|r| r.decode())));
         st.bytes = st.surface_bytes + st.flyaway_bytes + st.transmission_bytes + st.view_tilt_bytes + st.gradient_bytes + st.curvature_bytes;
         levels.push(st);
     }
