@@ -40,7 +40,7 @@ use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_cl
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::openness::{OpennessReport, fit_openness, measure_openness, openness_report, openness_views};
-use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission, refine_transmission_with_gradient};
+use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission, refine_transmission_gradient_from};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
@@ -1221,7 +1221,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
             let cluster_of = |j: usize| &fits[clusters[j] as usize].transmission;
             let plain: Vec<ClothTransmission> = per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission(s, cluster_of(j), ridge)).collect();
             match to.gradient_ridge {
-                Some(g) => (per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission_with_gradient(s, cluster_of(j), ridge, g)).collect(), Some(plain)),
+                Some(g) => (per_texel.par_iter().zip(&plain).enumerate().map(|(j, (s, first))| refine_transmission_gradient_from(*first, s, cluster_of(j), ridge, g)).collect(), Some(plain)),
                 None => (plain, None),
             }
         }
@@ -1232,11 +1232,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         let capped_plain: Vec<ClothTransmission> = plain.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
         image_errors(&predict_all(&|j| capped_plain[j]), &training.images, nx, ny)
     });
-    let gradient_median = without_gradient.is_some().then(|| {
-        let mut size: Vec<f32> = capped.iter().map(|t| t.grad.iter().map(|x| x * x).sum::<f32>().sqrt()).collect();
-        size.sort_by(f32::total_cmp);
-        size.get(size.len() / 2).copied().unwrap_or(0.0)
-    });
+    let gradient_median = without_gradient.is_some().then(|| median(capped.iter().map(|t| t.grad.iter().map(|x| x * x).sum::<f32>().sqrt()).collect()));
     let capped_texels = capped.iter().zip(&refined).filter(|(a, b)| a != b).count();
     let worst_albedo = capped.par_iter().zip(frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
     let predictions = predict_all(&|j| capped[j]);
@@ -1271,6 +1267,12 @@ fn predict_images<'p>(samples: &[Sample], params_of: &dyn Fn(usize) -> &'p Cloth
 fn sample_geo(s: &Sample, frames: &[TexelFrames], dirs: &[(Vec3, Vec3)], diffuse: DiffuseLaw) -> LobeTarget {
     let (wi, wo) = dirs[s.dirs as usize];
     LobeTarget::in_frames(&frames[s.hit as usize], wi, wo, s.vis, Vec3::ZERO, diffuse)
+}
+
+/// The median of `v` (0 for none).
+fn median(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// 4×4 block means of a texel-order image (partial blocks at the edges included).

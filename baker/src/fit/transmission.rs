@@ -265,7 +265,14 @@ pub fn refine_transmission(samples: &[TransTarget], cluster: &ClothTransmission,
 /// (β_t, γ_t, τ) stay the cluster's.
 pub fn refine_transmission_with_gradient(samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64) -> ClothTransmission {
     let plain = ClothTransmission { grad: [0.0; 4], ..*cluster };
-    let mut t = refine_transmission(samples, &plain, ridge);
+    refine_transmission_gradient_from(refine_transmission(samples, &plain, ridge), samples, cluster, ridge, gradient_ridge)
+}
+
+/// [`refine_transmission_with_gradient`] from `first`, the texel's refinement without a
+/// gradient (`refine_transmission` on the same samples), which the caller already has.
+pub fn refine_transmission_gradient_from(first: ClothTransmission, samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64) -> ClothTransmission {
+    let plain = ClothTransmission { grad: [0.0; 4], ..*cluster };
+    let mut t = first;
     if samples.is_empty() || plain.lobe.beta <= 0.0 {
         return t;
     }
