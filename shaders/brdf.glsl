@@ -391,13 +391,16 @@ struct ClothOpenness {
     float q;
     vec2 aniso;
 };
-// grad: the transmission's visibility gradient (g_u, g_l) (format 1.16; zero without).
+// grad, q0, q1: the transmission's visibility, gradient (g_u, g_l) and curvature (q split
+// as cloth_visibility's) (format 1.16; zero without).
 struct ClothTransmission {
     vec3 kd;
     ClothLobe lobe;
     float tau;
     ClothOpenness gap;
     vec4 grad;
+    vec3 q0;
+    vec3 q1;
 };
 
 // (cos 2phi, sin 2phi) of w's azimuth in the tile: an axis's, (0, 0) straight up or down.
@@ -429,13 +432,13 @@ float cloth_transmission_attenuation(float tau, float mu_i, float mu_o) {
     return exp(-t * (1.0 / mi + 1.0 / mo - 2.0));
 }
 
-// The transmission's visibility gradient (format 1.16): max(1 + g_u . u.xy + g_l . l.xy, 0)
-// with u the direction above the tile plane and l the one below, each coefficient clamped
-// to +-2: cloth_visibility_gradient with the viewer's side above. Symmetric in (wi, wo).
-float cloth_transmission_visibility(vec4 g, vec3 wi, vec3 wo) {
+// The transmission's visibility (format 1.16): max(1 + g_u . u.xy + g_l . l.xy + q . e(l, u), 0)
+// with u the direction above the tile plane and l the one below, g clamped to +-2, q to
+// +-2: cloth_visibility with the viewer's side above. Symmetric in (wi, wo).
+float cloth_transmission_visibility(vec4 g, vec3 q0, vec3 q1, vec3 wi, vec3 wo) {
     vec3 upper = wi.z > 0.0 ? wi : wo;
     vec3 lower = wi.z > 0.0 ? wo : wi;
-    return cloth_visibility_gradient(g, lower, upper);
+    return cloth_visibility(g, q0, q1, lower, upper);
 }
 
 // w mirrored through the tile plane (z -> -z).
@@ -459,7 +462,7 @@ vec3 cloth_transmission(ClothTransmission t, ClothFrame f, vec3 wi, vec3 wo) {
     ClothAngles al = cloth_angles(f, cloth_mirror_z(lower));
     vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
     vec3 k = min(max(t.lobe.k, vec3(0.0)), vec3(CLOTH_K_MAX));
-    return (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, wi, wo));
+    return (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, CLOTH_READING_BOUNDED)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, t.q0, t.q1, wi, wo));
 }
 
 // Transmitted radiance per unit irradiance: f_t * |wi.z| (the tile's cosine).

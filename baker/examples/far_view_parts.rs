@@ -196,7 +196,7 @@ fn surface_black(model: &HybridModel) -> HybridModel {
         table.headers.iter_mut().for_each(|h| h.kd = [0; 3]);
         table.lobes.iter_mut().for_each(|l| l.k = [0; 3]);
         l.transmission = None;
-        l.transmission_gradient = None;
+        l.transmission_visibility = None;
     }
     dark
 }

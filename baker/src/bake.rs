@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothParams, ClothTransmission, DiffuseLaw, FiberLobes};
-use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedCurvature, PackedGradient, PackedTransmission, Surface, Tile};
+use fabric_runtime::hybrid::{BakeMetadata, BrdfTable, ClusteredTexel, HeightField, HybridModel, Level, ModelError, PackedCurvature, PackedGradient, PackedTransmission, PackedTransmissionVisibility, Surface, Tile};
 use fabric_runtime::image::Image;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -40,7 +40,7 @@ use crate::fit::flyaways::{FlyawayAlpha, FlyawayReport, fit_flyaways, flyaway_cl
 use crate::fit::kmeans::{KMeansOptions, kmeans, representatives};
 use crate::fit::samples::{Groups, ProbeOptions, Sample, TrainingImages, half_seeds, image_jitter, probe_samples, render_training, texel_jitter};
 use crate::fit::openness::{OpennessReport, fit_openness, measure_openness, openness_report, openness_views};
-use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission, refine_transmission_gradient_from};
+use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFit, TransmissionFitOptions, albedo_estimate, cap_energy, fit_transmission, predict_transmission, refine_transmission, refine_transmission_visibility_from};
 use crate::geometry::{Geometry, GeometryError, GeometryOptions, extract_geometry_with};
 use crate::prefilter::{PrefilterError, PrefilterOptions, PrefilterReport, prefilter};
 use crate::progress::{Progress, stage as begin_stage};
@@ -428,7 +428,7 @@ pub struct TransmissionReport {
     pub block_error: f64,
     /// Per backlit pair: (relative RMSE over 4×4 blocks, mean(model)/mean(reference)).
     pub pair_errors: Vec<(f64, f64)>,
-    /// With the transmission gradient (format 1.16): the training error per pixel and
+    /// With the transmission visibility (format 1.16): the training error per pixel and
     /// over 4×4 blocks of the same refinement without it (energy capped as the kept
     /// one), and the median |g| over the texels; None without the gradient.
     pub without_gradient: Option<(f64, f64)>,
@@ -579,7 +579,7 @@ pub fn level0_framed(g: &Geometry, frames: &[ClothFrame], clusters: &[u32], para
         table.push(p);
     }
     let texels = (0..g.texels()).map(|j| ClusteredTexel::new(frames[j].n, frames[j].t, clusters.get(j).copied().unwrap_or(0) as u16)).collect();
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::Clustered { texels, table }, flyaways: None, transmission: None, transmission_visibility: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// Level 0 in the per-texel encoding: each texel its own k_d and k_j (refined), its
@@ -591,7 +591,7 @@ pub fn level0_per_texel(g: &Geometry, frames: &[TexelFrames], params: &[ClothPar
         let lobes: Vec<_> = p.lobes().iter().enumerate().map(|(l, lobe)| (*lobe, frames[j][l].n, frames[j][l].t)).collect();
         table.push_framed(p.kd, p.eta, p.a, &lobes);
     }
-    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None }
+    Level { width: g.dims[0] as u32, height: g.dims[1] as u32, surface: Surface::PerTexel(table), flyaways: None, transmission: None, transmission_visibility: None, view_tilt: None, gradient: None, curvature: None }
 }
 
 /// A level-0 texel's frame per lobe (lobe 0's also the diffuse term's).
@@ -951,7 +951,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
     model.levels[0].curvature = texel_gradients.as_ref().filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect());
     if let Some(t) = &texel_transmission {
         model.levels[0].transmission = Some(t.iter().map(PackedTransmission::new).collect());
-        model.levels[0].transmission_gradient = t.iter().any(|t| t.grad != [0.0; 4]).then(|| t.iter().map(|t| PackedGradient::new(t.grad)).collect());
+        model.levels[0].transmission_visibility = t.iter().any(|t| t.grad != [0.0; 4] || t.curv != [0.0; 6]).then(|| t.iter().map(|t| PackedTransmissionVisibility::new(t.grad, t.curv)).collect());
     }
 
     // 5. Flyaways, with the surface fixed.
@@ -1042,7 +1042,7 @@ pub fn bake(volume: &FabricVolume, options: &BakeOptions, progress: &dyn Progres
             let level_with = |params: &[ClothParams], vis: Option<&Vec<Visibility>>, from: &Level| Level {
                 flyaways: from.flyaways.clone(),
                 transmission: from.transmission.clone(),
-                transmission_gradient: from.transmission_gradient.clone(),
+                transmission_visibility: from.transmission_visibility.clone(),
                 gradient: vis.map(|v| v.iter().map(|v| PackedGradient::new(v.g)).collect()),
                 curvature: vis.filter(|_| curvature).map(|v| v.iter().map(|v| PackedCurvature::new(v.q)).collect()),
                 ..level0_per_texel(&geometry, &frames, params)
@@ -1210,7 +1210,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         images
     };
     let cluster_error = image_errors(&predict_all(&|j| fits[clusters[j] as usize].transmission), &training.images, nx, ny).0;
-    // Per texel: the k's refined, with the transmission gradient where asked (format
+    // Per texel: the k's refined, with the transmission visibility where asked (format
     // 1.16), and the refinement without it (what the gradient bought).
     let (refined, without): (Vec<ClothTransmission>, Option<Vec<ClothTransmission>>) = match options.per_texel_ridge {
         Some(ridge) => {
@@ -1221,7 +1221,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
             let cluster_of = |j: usize| &fits[clusters[j] as usize].transmission;
             let plain: Vec<ClothTransmission> = per_texel.par_iter().enumerate().map(|(j, s)| refine_transmission(s, cluster_of(j), ridge)).collect();
             match to.gradient_ridge {
-                Some(g) => (per_texel.par_iter().zip(&plain).enumerate().map(|(j, (s, first))| refine_transmission_gradient_from(*first, s, cluster_of(j), ridge, g)).collect(), Some(plain)),
+                Some(g) => (per_texel.par_iter().zip(&plain).enumerate().map(|(j, (s, first))| refine_transmission_visibility_from(*first, s, cluster_of(j), ridge, g, to.curvature_ridge)).collect(), Some(plain)),
                 None => (plain, None),
             }
         }

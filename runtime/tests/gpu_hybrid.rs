@@ -602,7 +602,7 @@ fn light_behind_the_cloth_matches_the_cpu_twin_and_costs_nothing_when_absent() {
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
     let mut model = examples::synthetic_model(64, 3);
-    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: Default::default(), grad: [0.5, -0.4, 0.6, 0.3] }, 8);
+    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: Default::default(), grad: [0.5, -0.4, 0.6, 0.3], curv: [0.3, -0.2, 0.1, -0.4, 0.25, 0.15] }, 8);
     let behind = [Light::directional(Vec3::new(0.3, -0.2, -1.0), Vec3::ONE), Light::Point { position: Vec3::new(0.5, 0.6, -0.8), intensity: Vec3::splat(1.5) }];
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, ..Default::default() };
     let near = Camera { origin: Vec3::new(0.4, -0.6, 0.9), target: Vec3::new(0.5, 0.5, 0.05), up: Vec3::Z, projection: Projection::Perspective { fov_x_deg: 50.0 }, width: 80, height: 64 };
@@ -627,7 +627,7 @@ fn light_behind_the_cloth_matches_the_cpu_twin_and_costs_nothing_when_absent() {
     assert_eq!(skip.image, full.image);
     // The same model without its transmission term passes nothing from behind.
     let mut brdf_only = model.clone();
-    brdf_only.levels.iter_mut().for_each(|l| (l.transmission, l.transmission_gradient) = (None, None));
+    brdf_only.levels.iter_mut().for_each(|l| (l.transmission, l.transmission_visibility) = (None, None));
     let g0 = pass.upload(&brdf_only, true).unwrap();
     let dark = pass.render(&g0, &near, &behind, &opts, None).unwrap();
     assert!(!dark.variant.transmission && dark.image.mean() == 0.0, "{}", dark.image.mean());
@@ -658,7 +658,7 @@ fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
     let device = device();
     let pass = HybridPass::new(&device).unwrap();
     let mut model = examples::synthetic_model(64, 3);
-    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.3, q: 1.5, aniso: [0.6, -0.4] }, grad: [0.5, -0.4, 0.6, 0.3] }, 8);
+    examples::add_transmission(&mut model, &ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.3, q: 1.5, aniso: [0.6, -0.4] }, grad: [0.5, -0.4, 0.6, 0.3], curv: [0.3, -0.2, 0.1, -0.4, 0.25, 0.15] }, 8);
     let below = sky_remapped(20.0, |y, h| Some(h - 1 - y));
     assert!(below.prefiltered.lights_below() && below.prefiltered.lights.iter().all(|l| matches!(*l, Light::Directional { dir_to_light, .. } if dir_to_light.z < 0.0)), "the sun below the sheet");
     let opts = CpuRenderOptions { periodic: true, shadows: ShadowMode::On, env: Some(below.clone()), ..Default::default() };
@@ -680,7 +680,7 @@ fn the_map_below_the_sheet_comes_through_the_cloth_in_both_twins() {
     let lit = pass.render(&g, &near, &[], &opts, None).unwrap();
     assert!(lit.variant.transmission);
     let mut brdf_only = model.clone();
-    brdf_only.levels.iter_mut().for_each(|l| (l.transmission, l.transmission_gradient) = (None, None));
+    brdf_only.levels.iter_mut().for_each(|l| (l.transmission, l.transmission_visibility) = (None, None));
     let dark = pass.render(&pass.upload(&brdf_only, true).unwrap(), &near, &[], &opts, None).unwrap();
     assert!(!dark.variant.transmission && lit.image.mean() > 2.0 * dark.image.mean(), "{} vs {}", lit.image.mean(), dark.image.mean());
     // The gaps (format 1.10) are part of what the twins agreed on above: closing them

@@ -17,7 +17,7 @@ fn sample() -> HybridModel {
 fn bsdf_sample() -> HybridModel {
     use fabric_runtime::brdf::{ClothLobe, ClothOpenness, ClothTransmission};
     let mut m = sample();
-    examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: glam::Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.06, q: 2.0, aniso: [0.5, -0.25] }, grad: [0.5, -0.4, 0.6, 0.3] }, 2);
+    examples::add_transmission(&mut m, &ClothTransmission { kd: glam::Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: glam::Vec3::new(0.3, 0.2, 0.1), beta: 0.4, gamma: 1.5 }, tau: 0.5, gap: ClothOpenness { o: 0.06, q: 2.0, aniso: [0.5, -0.25] }, grad: [0.5, -0.4, 0.6, 0.3], curv: [0.3, -0.2, 0.1, -0.4, 0.25, 0.15] }, 2);
     m.validate().expect("the BSDF sample is valid");
     m
 }
@@ -209,22 +209,24 @@ fn a_bsdf_round_trips_and_a_reader_that_skips_its_transmission_reads_the_brdf() 
     let mut closed = m.clone();
     closed.levels.iter_mut().flat_map(|l| l.transmission.iter_mut().flatten()).for_each(|t| (t.gap, t.gap_aniso) = ([0; 2], 0));
     assert_eq!(format::read(&format::to_bytes(&closed).unwrap()).unwrap().levels[0].texel_brdf(0, 0).transmission.gap, Default::default());
-    // The transmission gradient (1.16) survives the trip; a 1.15 reader skips its
-    // section and reads the same terms with g = 0.
-    let g = m.levels[0].texel_brdf(0, 0).transmission.grad;
-    assert!(m.levels.iter().all(|l| l.transmission_gradient.is_some()) && (g[0] + 0.5).abs() < 1e-3 && (g[1] + 0.4).abs() < 1e-3 && (g[2] + 0.6).abs() < 1e-3, "{g:?}");
+    // The transmission visibility (1.16) survives the trip; a 1.15 reader skips its
+    // section and reads the same terms with g = q = 0.
+    let t = m.levels[0].texel_brdf(0, 0).transmission;
+    let (g, q) = (t.grad, t.curv);
+    assert!(m.levels.iter().all(|l| l.transmission_visibility.is_some()) && (g[0] + 0.5).abs() < 1e-3 && (g[1] + 0.4).abs() < 1e-3 && (g[2] + 0.6).abs() < 1e-3, "{g:?}");
+    assert!((q[0] + 0.3).abs() < 1e-3 && (q[5] + 0.15).abs() < 1e-3, "{q:?}");
     let mut parts = Parts::of(&bytes);
-    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::TransmissionGradient as u32) {
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::TransmissionVisibility as u32) {
         assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
         e.kind = 4004;
     }
     let ungraded = format::read(&parts.assemble()).unwrap();
-    assert!(ungraded.levels.iter().all(|l| l.transmission_gradient.is_none()) && ungraded.levels[0].transmission == m.levels[0].transmission);
-    assert_eq!(ungraded.levels[0].texel_brdf(0, 0).transmission.grad, [0.0; 4]);
+    assert!(ungraded.levels.iter().all(|l| l.transmission_visibility.is_none()) && ungraded.levels[0].transmission == m.levels[0].transmission);
+    assert_eq!((ungraded.levels[0].texel_brdf(0, 0).transmission.grad, ungraded.levels[0].texel_brdf(0, 0).transmission.curv), ([0.0; 4], [0.0; 6]));
     // The sections are optional: a reader that knows neither kind (a 1.2 reader) skips
     // them and gets the reflection alone.
     let mut parts = Parts::of(&bytes);
-    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Transmission as u32 || e.kind == SectionKind::TransmissionGradient as u32) {
+    for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Transmission as u32 || e.kind == SectionKind::TransmissionVisibility as u32) {
         assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
         e.kind = 4000 + e.kind;
     }
@@ -247,12 +249,13 @@ fn transmission_corruption_catalogue() {
         ("one record short", |p| { let t = p.find(SectionKind::Transmission, 1); t.truncate(t.len() - 24) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "transmission records", level: 1, .. }))),
         ("not whole records", |p| p.find(SectionKind::Transmission, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "TRANSMISSION")),
         ("for a level that does not exist", |p| p.entry(SectionKind::Transmission, 3).level = 12, |e| matches!(e, FormatError::Section { level: 12, .. })),
-        // The transmission gradient (1.16).
-        ("NaN g_u.x", |p| p.find(SectionKind::TransmissionGradient, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionGradientParam { field: "g_u.x", level: 0, .. }))),
-        ("g_l.y = 3", |p| p.find(SectionKind::TransmissionGradient, 1)[6..8].copy_from_slice(&0x4200u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionGradientParam { field: "g_l.y", level: 1, .. }))),
-        ("a gradient record short", |p| { let t = p.find(SectionKind::TransmissionGradient, 1); t.truncate(t.len() - 8) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "transmission gradient records", level: 1, .. }))),
-        ("gradient records not whole", |p| p.find(SectionKind::TransmissionGradient, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "TRANSMISSION_GRADIENT")),
-        ("a gradient without transmission", |p| p.entry(SectionKind::Transmission, 2).kind = 4000, |e| matches!(e, FormatError::Invalid(ModelError::TransmissionGradientAlone { level: 2 }))),
+        // The transmission visibility (1.16).
+        ("NaN g_u.x", |p| p.find(SectionKind::TransmissionVisibility, 0)[0..2].copy_from_slice(&0x7e00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionVisibilityParam { field: "g_u.x", level: 0, .. }))),
+        ("g_l.y = 3", |p| p.find(SectionKind::TransmissionVisibility, 1)[6..8].copy_from_slice(&0x4200u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionVisibilityParam { field: "g_l.y", level: 1, .. }))),
+        ("infinite q_cross", |p| p.find(SectionKind::TransmissionVisibility, 2)[18..20].copy_from_slice(&0x7c00u16.to_le_bytes()), |e| matches!(e, FormatError::Invalid(ModelError::TransmissionVisibilityParam { field: "q_cross", level: 2, .. }))),
+        ("a visibility record short", |p| { let t = p.find(SectionKind::TransmissionVisibility, 1); t.truncate(t.len() - 20) }, |e| matches!(e, FormatError::Invalid(ModelError::Length { what: "transmission visibility records", level: 1, .. }))),
+        ("visibility records not whole", |p| p.find(SectionKind::TransmissionVisibility, 0).push(0), |e| matches!(e, FormatError::Section { kind, .. } if kind == "TRANSMISSION_VISIBILITY")),
+        ("a visibility without transmission", |p| p.entry(SectionKind::Transmission, 2).kind = 4000, |e| matches!(e, FormatError::Invalid(ModelError::TransmissionVisibilityAlone { level: 2 }))),
     ];
     run_catalogue(&format::to_bytes(&bsdf_sample()).unwrap(), cases);
 }

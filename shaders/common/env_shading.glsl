@@ -255,8 +255,8 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
     vec3 kd = min(max(t.kd, vec3(0.0)), vec3(CLOTH_K_MAX));
     vec3 resp = vec3(0.0);
     if (max(max(kd.x, kd.y), kd.z) > 0.0) {
-        // The transmission gradient at the lower cosine lobe's mean direction, -(2/3) z.
-        float m = cloth_transmission_visibility(t.grad, vec3(0.0, 0.0, -2.0 / 3.0), wo);
+        // The transmission visibility at the lower cosine lobe's mean direction, -(2/3) z.
+        float m = cloth_transmission_visibility(t.grad, t.q0, t.q1, vec3(0.0, 0.0, -2.0 / 3.0), wo);
         resp = kd * env_irradiance_full(vec3(0.0, 0.0, -1.0)) * (transmission_env_diffuse_factor(t.tau) * cloth_transmission_attenuation(t.tau, 1.0, wo.z) * m);
     }
     // The map seen straight through the gaps along the view ray (format 1.10).
@@ -264,10 +264,10 @@ vec3 texel_env_transmission(TexelRef r, Edit e, bool rotate, vec3 wo, uint nodes
     if (gap > 0.0) {
         resp += gap * env_blurred(-wo, 0.0);
     }
-    // Each group scaled by the transmission gradient at its mean direction, which lies
-    // below the sheet (mirrored axes): cloth_visibility with q = 0 reads g_u at wo and
-    // g_l there, as cloth_transmission_visibility does.
-    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, false, nodes, lookups, t.grad, vec3(0.0), vec3(0.0));
+    // Each group scaled by the transmission's visibility at its mean direction, which
+    // lies below the sheet (mirrored axes): cloth_visibility reads g_u at wo and g_l
+    // there, as cloth_transmission_visibility does.
+    return resp + lobe_env(t.lobe, 1.0, 0.0, f, wo, CLOTH_READING_BOUNDED, false, true, t.tau, false, nodes, lookups, t.grad, t.q0, t.q1);
 }
 
 #endif // ENV_SHADING_GLSL

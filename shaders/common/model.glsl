@@ -139,13 +139,15 @@ uint model_diffuse() {
 }
 
 // GpuTransmission record `index` (runtime/src/hybrid/gpu_layout.rs): the file's
-// PackedTransmission (runtime/src/hybrid/lobe.rs), then its transmission gradient
-// (format 1.16; zero without one).
+// PackedTransmission (runtime/src/hybrid/lobe.rs), then its PackedTransmissionVisibility
+// (format 1.16; zero without one) and a pad word.
 ClothTransmission packed_transmission(uint index) {
-    uvec2 a = transmissions[4u * index];
-    uvec2 b = transmissions[4u * index + 1u];
-    uvec2 c = transmissions[4u * index + 2u];
-    uvec2 d = transmissions[4u * index + 3u];
+    uvec2 a = transmissions[6u * index];
+    uvec2 b = transmissions[6u * index + 1u];
+    uvec2 c = transmissions[6u * index + 2u];
+    uvec2 d = transmissions[6u * index + 3u];
+    uvec2 e = transmissions[6u * index + 4u];
+    uvec2 q = transmissions[6u * index + 5u];
     ClothTransmission t;
     t.kd = vec3(f16_value(a.x), f16_value(a.x >> 16), f16_value(a.y));
     t.lobe.k = vec3(f16_value(a.y >> 16), f16_value(b.x), f16_value(b.x >> 16));
@@ -156,6 +158,8 @@ ClothTransmission packed_transmission(uint index) {
     t.gap.q = f16_value(c.y);
     t.gap.aniso = vec2(snorm8_value(c.y, 2u), snorm8_value(c.y, 3u));
     t.grad = vec4(f16_value(d.x), f16_value(d.x >> 16), f16_value(d.y), f16_value(d.y >> 16));
+    t.q0 = vec3(f16_value(e.x), f16_value(e.x >> 16), f16_value(e.y));
+    t.q1 = vec3(f16_value(e.y >> 16), f16_value(q.x), f16_value(q.x >> 16));
     return t;
 }
 

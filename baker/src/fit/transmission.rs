@@ -18,17 +18,18 @@
 //! path through the cloth is longest (baker/FIT_MEASUREMENTS.md, "Transmission"). The
 //! angles come from the runtime's own `cloth_angles` and `cloth_lobe_shape`, never a copy.
 //!
-//! The transmission gradient (format 1.16, `brdf::cloth_transmission_visibility`): at one
-//! texel per fibre, the light that comes through a gap is seen on the wall that faces the
-//! viewer and is lit through the gap from below, so what the volume shows along a ray
-//! that the model says meets a texel depends on the side the ray and the light come
+//! The transmission visibility (format 1.16, `brdf::cloth_transmission_visibility`): at
+//! one texel per fibre, the light that comes through a gap is seen on the wall that
+//! faces the viewer and is lit through the gap from below, so what the volume shows along
+//! a ray that the model says meets a texel depends on the side the ray and the light come
 //! from, which a term even in their slant cannot say. Each texel's whole term is
-//! multiplied by M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y), 0) (u the viewer's side
-//! above the sheet, l the light's below), fitted as the reflection's gradient is
-//! (`fit::gradient`): alternating g by linear least squares for fixed k's and the k's by
-//! [`refine_transmission`] on the samples scaled by M_t
-//! ([`refine_transmission_with_gradient`]). baker/FIT_MEASUREMENTS.md, "Transmission",
-//! measures what it buys.
+//! multiplied by M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y) + q·e(l, u), 0) (u the
+//! viewer's side above the sheet, l the light's below, e the reflection curvature's six
+//! even terms: light straight through along the yarns is not light across them), fitted
+//! as the reflection's visibility is (`fit::gradient`): alternating g, q by linear least
+//! squares for fixed k's and the k's by [`refine_transmission`] on the samples scaled by
+//! M_t ([`refine_transmission_with_visibility`]). baker/FIT_MEASUREMENTS.md,
+//! "Transmission", measures what it buys.
 //!
 //! Energy: a texel may not pass more than it receives. The transmitted albedo
 //! T(ω_i) = ∫ f_t(ω_i, ω_o) cos θ_o dω_o over the upper hemisphere is bounded by one for
@@ -39,17 +40,18 @@ use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission
 use glam::{DVec3, Vec3};
 
 use super::cluster_fit::LOBE_SUPPORT_MIN;
-use super::gradient::gradient_least_squares;
+use super::gradient::{Visibility, gradient_least_squares, visibility_least_squares};
 use super::nnls::nnls_gram;
 use super::simplex::{NelderMead, nelder_mead_restarts};
 
 /// The largest transmitted albedo a fitted term may have.
 pub const ALBEDO_MAX: f32 = 1.0;
 
-/// The transmission gradient's ridge towards g = 0 (as the reflection's, `fit::gradient`).
+/// The transmission visibility's ridge towards g = 0 and q = 0 (as the reflection's,
+/// `fit::gradient`).
 pub const GRADIENT_RIDGE: f64 = 0.05;
 
-/// Alternations of (g for fixed k, k for fixed g) of the transmission gradient.
+/// Alternations of (g for fixed k, k for fixed g) of the transmission visibility.
 const GRADIENT_ROUNDS: usize = 4;
 
 /// The BSDF-independent factors of one backlit sample in the frame of the texel hit.
@@ -105,15 +107,18 @@ pub struct TransmissionFitOptions {
     /// Rays per texel per view that measure the openness (`fit::openness`; 0: none, the
     /// texels are closed).
     pub openness_rays: u32,
-    /// With the per-texel refinement, fit each texel's transmission gradient (format
-    /// 1.16) with this ridge towards g = 0, relative to the normal equations' mean
-    /// diagonal; `None`: none.
+    /// With the per-texel refinement, fit each texel's transmission visibility (format
+    /// 1.16): its gradient with this ridge towards g = 0, relative to the normal
+    /// equations' mean diagonal; `None`: none.
     pub gradient_ridge: Option<f64>,
+    /// With the gradient, its curvature too, with this ridge towards q = 0; `None`: the
+    /// gradient alone.
+    pub curvature_ridge: Option<f64>,
 }
 
 impl Default for TransmissionFitOptions {
     fn default() -> Self {
-        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0, openness_rays: 8, gradient_ridge: Some(GRADIENT_RIDGE) }
+        TransmissionFitOptions { beta_range: [0.03, 3.0], gamma_range: [0.05, 20.0], tau_max: 4.0, max_evals: 300, restarts: 2, search_samples: 6000, spp: 0, openness_rays: 8, gradient_ridge: Some(GRADIENT_RIDGE), curvature_ridge: Some(GRADIENT_RIDGE) }
     }
 }
 
@@ -140,7 +145,7 @@ impl TransmissionFit {
 pub fn predict_transmission(t: &ClothTransmission, g: &TransGeo) -> Vec3 {
     let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    (kd + k * cloth_lobe_shape(g.theta_sum, g.phi_sum, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (g.cos * cloth_transmission_attenuation(t.tau, g.wi.z, g.wo.z) * cloth_transmission_visibility(t.grad, g.wi, g.wo))
+    (kd + k * cloth_lobe_shape(g.theta_sum, g.phi_sum, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (g.cos * cloth_transmission_attenuation(t.tau, g.wi.z, g.wo.z) * cloth_transmission_visibility(t.grad, t.curv, g.wi, g.wo))
 }
 
 /// Gram matrix (2×2), Aᵀb per channel and bᵀb per channel of the basis [c, S·c],
@@ -259,34 +264,38 @@ pub fn refine_transmission(samples: &[TransTarget], cluster: &ClothTransmission,
     out
 }
 
-/// Refines one texel's k's together with its transmission gradient (module docs):
-/// [`refine_transmission`] without it, then alternations of g by least squares for
-/// fixed k's (ridge `gradient_ridge`) and the k's on the samples scaled by M_t.
-/// (β_t, γ_t, τ) stay the cluster's.
-pub fn refine_transmission_with_gradient(samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64) -> ClothTransmission {
-    let plain = ClothTransmission { grad: [0.0; 4], ..*cluster };
-    refine_transmission_gradient_from(refine_transmission(samples, &plain, ridge), samples, cluster, ridge, gradient_ridge)
+/// Refines one texel's k's together with its transmission visibility (module docs):
+/// [`refine_transmission`] without it, then alternations of the visibility by least
+/// squares for fixed k's (the gradient with ridge `gradient_ridge`; the curvature too,
+/// with its ridge, where `curvature_ridge` is given) and the k's on the samples scaled by
+/// M_t. (β_t, γ_t, τ) stay the cluster's.
+pub fn refine_transmission_with_visibility(samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64, curvature_ridge: Option<f64>) -> ClothTransmission {
+    let plain = ClothTransmission { grad: [0.0; 4], curv: [0.0; 6], ..*cluster };
+    refine_transmission_visibility_from(refine_transmission(samples, &plain, ridge), samples, cluster, ridge, gradient_ridge, curvature_ridge)
 }
 
-/// [`refine_transmission_with_gradient`] from `first`, the texel's refinement without a
-/// gradient (`refine_transmission` on the same samples), which the caller already has.
-pub fn refine_transmission_gradient_from(first: ClothTransmission, samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64) -> ClothTransmission {
-    let plain = ClothTransmission { grad: [0.0; 4], ..*cluster };
+/// [`refine_transmission_with_visibility`] from `first`, the texel's refinement without
+/// it (`refine_transmission` on the same samples), which the caller already has.
+pub fn refine_transmission_visibility_from(first: ClothTransmission, samples: &[TransTarget], cluster: &ClothTransmission, ridge: f64, gradient_ridge: f64, curvature_ridge: Option<f64>) -> ClothTransmission {
+    let plain = ClothTransmission { grad: [0.0; 4], curv: [0.0; 6], ..*cluster };
     let mut t = first;
     if samples.is_empty() || plain.lobe.beta <= 0.0 {
         return t;
     }
     for _ in 0..GRADIENT_ROUNDS {
-        let ungraded = ClothTransmission { grad: [0.0; 4], ..t };
-        // gradient_least_squares's features are (ω_o,x, ω_o,y, ω_i,x, ω_i,y): the side
-        // above as ω_o and the side below as ω_i give (g_u, g_l).
+        let unseen = ClothTransmission { grad: [0.0; 4], curv: [0.0; 6], ..t };
+        // The least squares' features are (ω_o,x, ω_o,y, ω_i,x, ω_i,y) and the even
+        // terms: the side above as ω_o and the side below as ω_i give (g_u, g_l).
         let rows = samples.iter().map(|s| {
             let (upper, lower) = if s.geo.wi.z > 0.0 { (s.geo.wi, s.geo.wo) } else { (s.geo.wo, s.geo.wi) };
-            (predict_transmission(&ungraded, &s.geo), s.radiance, lower, upper)
+            (predict_transmission(&unseen, &s.geo), s.radiance, lower, upper)
         });
-        let grad = gradient_least_squares(rows, gradient_ridge);
-        let scaled: Vec<TransTarget> = samples.iter().map(|s| TransTarget { geo: TransGeo { cos: s.geo.cos * cloth_transmission_visibility(grad, s.geo.wi, s.geo.wo), ..s.geo }, radiance: s.radiance }).collect();
-        t = ClothTransmission { grad, ..refine_transmission(&scaled, &plain, ridge) };
+        let v = match curvature_ridge {
+            Some(q_ridge) => visibility_least_squares(rows, gradient_ridge, q_ridge),
+            None => Visibility { g: gradient_least_squares(rows, gradient_ridge), q: [0.0; 6] },
+        };
+        let scaled: Vec<TransTarget> = samples.iter().map(|s| TransTarget { geo: TransGeo { cos: s.geo.cos * cloth_transmission_visibility(v.g, v.q, s.geo.wi, s.geo.wo), ..s.geo }, radiance: s.radiance }).collect();
+        t = ClothTransmission { grad: v.g, curv: v.q, ..refine_transmission(&scaled, &plain, ridge) };
     }
     t
 }
@@ -417,7 +426,7 @@ mod tests {
     }
 
     #[test]
-    fn the_gradient_is_recovered_with_the_texels_ks() {
+    fn the_visibility_is_recovered_with_the_texels_ks() {
         // A texel whose term is its cluster's brighter and scaled by a known M_t: the
         // refinement with the gradient finds both, the one without cannot fit it.
         let cluster = truth();
@@ -428,14 +437,22 @@ mod tests {
             let (d2, r2) = samples.iter().fold((0f64, 0f64), |(d, r), s| (d + (predict_transmission(t, &s.geo) - s.radiance).as_dvec3().length_squared(), r + s.radiance.as_dvec3().length_squared()));
             (d2 / r2).sqrt()
         };
-        let r = refine_transmission_with_gradient(&samples, &cluster, 1e-4, 1e-4);
+        let r = refine_transmission_with_visibility(&samples, &cluster, 1e-4, 1e-4, None);
         assert!(r.grad.iter().zip(g).all(|(a, b)| (a - b).abs() < 0.03), "{:?}", r.grad);
         assert!((r.kd - texel.kd).abs().max_element() < 2e-3 && (r.lobe.k - texel.lobe.k).abs().max_element() < 1e-2, "{r:?}");
         assert!(residual(&r) < 0.01, "{}", residual(&r));
         let plain = refine_transmission(&samples, &cluster, 1e-4);
         assert!(residual(&plain) > 0.1, "without the gradient: {}", residual(&plain));
         // Without samples, the cluster's own term (no gradient).
-        assert_eq!(refine_transmission_with_gradient(&[], &cluster, 1e-4, 0.05), cluster);
+        assert_eq!(refine_transmission_with_visibility(&[], &cluster, 1e-4, 0.05, Some(0.05)), cluster);
+        // With the curvature: a texel with both is recovered too.
+        let q = [0.3, -0.2, 0.1, -0.4, 0.25, 0.15];
+        let texel = ClothTransmission { curv: q, ..texel };
+        let samples = synthetic(&texel, 0.0, 2500);
+        let r = refine_transmission_with_visibility(&samples, &cluster, 1e-4, 1e-5, Some(1e-5));
+        assert!(r.grad.iter().zip(g).all(|(a, b)| (a - b).abs() < 0.05) && r.curv.iter().zip(q).all(|(a, b)| (a - b).abs() < 0.08), "{:?} {:?}", r.grad, r.curv);
+        let (d2, r2) = samples.iter().fold((0f64, 0f64), |(d, t), s| (d + (predict_transmission(&r, &s.geo) - s.radiance).as_dvec3().length_squared(), t + s.radiance.as_dvec3().length_squared()));
+        assert!((d2 / r2).sqrt() < 0.01, "{}", (d2 / r2).sqrt());
     }
 
     #[test]
@@ -453,7 +470,7 @@ mod tests {
         assert!((worst_albedo(&capped, &frame) - 1.0).abs() < 1e-3, "{}", worst_albedo(&capped, &frame));
         assert_eq!(cap_energy(&truth(), &frame), truth());
         assert!(worst_albedo(&truth(), &frame) < 1.0);
-        // The cheap bound is a bound, on tilted frames too, with a transmission gradient.
+        // The cheap bound is a bound, on tilted frames too, with a transmission visibility.
         let graded = ClothTransmission { grad: [0.8, -0.5, -0.9, 0.4], ..truth() };
         for t in [truth(), bright, diffuse, graded] {
             for n in [Vec3::Z, Vec3::new(0.5, 0.2, 1.0)] {

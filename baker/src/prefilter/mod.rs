@@ -377,7 +377,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             compact::quantize_table(&mut table);
             flyaways.iter_mut().for_each(compact::quantize_flyaway_nodes);
         }
-        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), transmission_gradient: None, view_tilt: None, gradient: graded.then_some(gradients), curvature: curved.then_some(curvatures) };
+        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), transmission_visibility: None, view_tilt: None, gradient: graded.then_some(gradients), curvature: curved.then_some(curvatures) };
         let t_level = Instant::now();
         let fitted = tilts.as_mut().map(|t| t.fit_level(model, level, &l, reading));
         report.view_tilt_seconds += t_level.elapsed().as_secs_f64();

@@ -582,10 +582,12 @@ pub struct ClothTransmission {
     /// The light that crosses the texel unscattered, through the gaps between yarns
     /// (format 1.10; zero in older files).
     pub gap: ClothOpenness,
-    /// The transmission's visibility gradient (g_u,x, g_u,y, g_l,x, g_l,y) of
+    /// The transmission's visibility gradient (g_u,x, g_u,y, g_l,x, g_l,y) and
+    /// curvature (format 1.15's order of [`cloth_curvature_terms`]) of
     /// [`cloth_transmission_visibility`] (format 1.16; zero in older files and at levels
-    /// without one).
+    /// without them).
     pub grad: [f32; 4],
+    pub curv: [f32; 6],
 }
 
 impl ClothTransmission {
@@ -651,19 +653,22 @@ pub fn cloth_transmission_attenuation(tau: f32, mu_i: f32, mu_o: f32) -> f32 {
     (-tau * (1.0 / mi + 1.0 / mo - 2.0)).exp()
 }
 
-/// The transmission's visibility gradient (format 1.16): with u whichever of ω_i, ω_o
-/// lies above the tile plane and l the other,
-/// M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y), 0), each coefficient clamped to
-/// ±[`GRADIENT_MAX`] — [`cloth_visibility_gradient`] with the viewer's side above and the
-/// light's below, so that f_t stays symmetric in (ω_i, ω_o). What the volume shows
-/// along a ray that the model says meets a texel beside a gap depends on the side the
-/// ray and the light come from: the gap's light is seen on the wall that faces the
-/// viewer and is lit through the gap from below (baker/FIT_MEASUREMENTS.md,
-/// "Transmission"). 1 for g = 0 and for both directions along ±ẑ.
+/// The transmission's visibility (format 1.16): with u whichever of ω_i, ω_o lies above
+/// the tile plane and l the other,
+/// M_t = max(1 + g_u·(u_x, u_y) + g_l·(l_x, l_y) + q · e(l, u), 0), each g clamped to
+/// ±[`GRADIENT_MAX`], each q to ±[`CURVATURE_MAX`] — [`cloth_visibility`] with the
+/// viewer's side above and the light's below, so that f_t stays symmetric in
+/// (ω_i, ω_o) (e is symmetric). What the volume shows along a ray that the model says
+/// meets a texel beside a gap depends on the side the ray and the light come from: the
+/// gap's light is seen on the wall that faces the viewer and is lit through the gap
+/// from below (the odd part g); and light straight through the sheet along the yarns
+/// differs from light across them by more than the lobe's form allows (the even part
+/// q) (baker/FIT_MEASUREMENTS.md, "Transmission"). 1 for g = q = 0 and for both
+/// directions along ±ẑ.
 #[inline]
-pub fn cloth_transmission_visibility(g: [f32; 4], wi: Vec3, wo: Vec3) -> f32 {
+pub fn cloth_transmission_visibility(g: [f32; 4], q: [f32; 6], wi: Vec3, wo: Vec3) -> f32 {
     let (upper, lower) = if wi.z > 0.0 { (wi, wo) } else { (wo, wi) };
-    cloth_visibility_gradient(g, lower, upper)
+    cloth_visibility(g, q, lower, upper)
 }
 
 /// `w` mirrored through the tile plane (z ↦ −z).
@@ -694,7 +699,7 @@ pub fn cloth_transmission(t: &ClothTransmission, f: &ClothFrame, wi: Vec3, wo: V
     let al = cloth_angles(f, cloth_mirror_z(lower));
     let kd = t.kd.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
     let k = t.lobe.k.max(Vec3::ZERO).min(Vec3::splat(K_MAX));
-    (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, wi, wo))
+    (kd + k * cloth_lobe_shape(al.theta + au.theta, al.phi + au.phi, t.lobe.beta, t.lobe.gamma, BrdfReading::Bounded)) * (cloth_transmission_attenuation(t.tau, wi.z, wo.z) * cloth_transmission_visibility(t.grad, t.curv, wi, wo))
 }
 
 /// Transmitted radiance per unit irradiance: f_t · |ω_i.z| (the tile's cosine, since the

@@ -265,7 +265,7 @@ fn shading_vectors_cover_every_branch() {
         assert!(across || r.transmission == [0.0; 3], "{r:?}");
     }
     assert!(rows.iter().filter(|r| r.transmission[0] > 0.0).count() >= 5);
-    // The transmission gradient (format 1.16): clamped to 0 somewhere, above 1 somewhere
+    // The transmission visibility (format 1.16): clamped to 0 somewhere, above 1 somewhere
     // across the sheet.
     let across = |r: &&super::twin::ShadingVector| r.wi[2] * r.wo[2] < 0.0;
     assert!(rows.iter().filter(across).any(|r| r.transmission_visibility == 0.0) && rows.iter().filter(across).any(|r| r.transmission_visibility > 1.0));
@@ -374,7 +374,7 @@ fn twin_arctangent_is_accurate_everywhere() {
 }
 
 fn transmission() -> ClothTransmission {
-    ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.25, gamma: 1.0 }, tau: 0.7, gap: Default::default(), grad: [0.4, -0.3, 0.5, 0.2] }
+    ClothTransmission { kd: Vec3::new(0.05, 0.04, 0.03), lobe: ClothLobe { k: Vec3::new(0.3, 0.2, 0.1), beta: 0.25, gamma: 1.0 }, tau: 0.7, gap: Default::default(), grad: [0.4, -0.3, 0.5, 0.2], curv: [0.2, -0.3, 0.1, 0.4, -0.2, 0.1] }
 }
 
 #[test]
@@ -400,7 +400,7 @@ fn transmission_is_reciprocal_and_peaks_straight_through() {
     }
     // With n = z, the lobe peaks at ω_o = −ω_i: straight through beats every tilt of it.
     let f = cloth_frame(Vec3::Z, Vec3::X);
-    let t0 = ClothTransmission { tau: 0.0, grad: [0.0; 4], ..t };
+    let t0 = ClothTransmission { tau: 0.0, grad: [0.0; 4], curv: [0.0; 6], ..t };
     let wi = Vec3::new(0.3, 0.2, -0.9).normalize();
     let peak = cloth_transmission(&t0, &f, wi, -wi).x;
     for k in 0..16 {
@@ -424,33 +424,40 @@ fn transmission_is_reciprocal_and_peaks_straight_through() {
     assert!((r - cloth_transmission(&t, &f, wi, -wi) * 0.9f32.min(-wi.z).max(-wi.z)).abs().max_element() < 1e-6);
 }
 
-/// The transmission gradient (format 1.16): the reflection's gradient with the viewer's
-/// side above and the light's below, the same whichever of ω_i, ω_o is the light; 1 for
-/// g = 0 and along ±ẑ; a factor of the whole term.
+/// The transmission's visibility (format 1.16): the reflection's visibility with the
+/// viewer's side above and the light's below, the same whichever of ω_i, ω_o is the
+/// light; 1 for g = q = 0 and along ±ẑ; a factor of the whole term.
 #[test]
-fn the_transmission_gradient_reads_each_side_of_the_sheet() {
+fn the_transmission_visibility_reads_each_side_of_the_sheet() {
     let mut rng = super::twin::SplitMix64(29);
     let t = transmission();
     let f = cloth_frame(Vec3::new(0.1, -0.2, 1.0), Vec3::X);
     for _ in 0..2000 {
-        let g = [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)];
+        let g: [f32; 4] = std::array::from_fn(|_| rng.range(-3.0, 3.0));
+        let q: [f32; 6] = std::array::from_fn(|_| rng.range(-3.0, 3.0));
         let above = (rng.unit_vector() * Vec3::new(1.0, 1.0, 0.0) + Vec3::Z * rng.range(0.02, 1.0)).normalize();
         let below = (rng.unit_vector() * Vec3::new(1.0, 1.0, 0.0) - Vec3::Z * rng.range(0.02, 1.0)).normalize();
-        let m = cloth_transmission_visibility(g, below, above);
-        assert_eq!(m, cloth_transmission_visibility(g, above, below), "reciprocal");
-        assert_eq!(m, cloth_visibility_gradient(g, below, above), "g_u on the side above, g_l below");
+        let m = cloth_transmission_visibility(g, q, below, above);
+        assert_eq!(m, cloth_transmission_visibility(g, q, above, below), "reciprocal");
+        assert_eq!(m, cloth_visibility(g, q, below, above), "g_u on the side above, g_l below");
+        assert_eq!(cloth_transmission_visibility(g, [0.0; 6], below, above), cloth_visibility_gradient(g, below, above));
         assert!(m.is_finite() && m >= 0.0);
-        assert_eq!(cloth_transmission_visibility([0.0; 4], below, above), 1.0);
-        // The term scales by M_t: against the same term without the gradient.
-        let plain = cloth_transmission(&ClothTransmission { grad: [0.0; 4], ..t }, &f, below, above);
-        let graded = cloth_transmission(&ClothTransmission { grad: g, ..t }, &f, below, above);
-        assert!((graded - plain * m).abs().max_element() <= 1e-5 * plain.max_element().max(1e-6), "{graded} vs {plain} × {m}");
+        assert_eq!(cloth_transmission_visibility([0.0; 4], [0.0; 6], below, above), 1.0);
+        // The term scales by M_t: against the same term without it.
+        let plain = cloth_transmission(&ClothTransmission { grad: [0.0; 4], curv: [0.0; 6], ..t }, &f, below, above);
+        let seen = cloth_transmission(&ClothTransmission { grad: g, curv: q, ..t }, &f, below, above);
+        assert!((seen - plain * m).abs().max_element() <= 1e-5 * plain.max_element().max(1e-6), "{seen} vs {plain} × {m}");
     }
-    assert_eq!(cloth_transmission_visibility([1.0, -1.0, 2.0, 0.5], -Vec3::Z, Vec3::Z), 1.0);
+    assert_eq!(cloth_transmission_visibility([1.0, -1.0, 2.0, 0.5], [0.5, 0.4, -0.3, 0.2, 0.1, 0.7], -Vec3::Z, Vec3::Z), 1.0);
     // Past their clamp (±2) the coefficients act as ±2; far past, the factor is 0.
     let (above, below) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.6, 0.0, -0.8));
-    assert_eq!(cloth_transmission_visibility([9.0, 0.0, 0.0, 0.0], below, above), cloth_transmission_visibility([2.0, 0.0, 0.0, 0.0], below, above));
-    assert_eq!(cloth_transmission_visibility([-2.0, 0.0, 2.0, 0.0], below, above), 0.0);
+    assert_eq!(cloth_transmission_visibility([9.0, 0.0, 0.0, 0.0], [0.0; 6], below, above), cloth_transmission_visibility([2.0, 0.0, 0.0, 0.0], [0.0; 6], below, above));
+    assert_eq!(cloth_transmission_visibility([-2.0, 0.0, 2.0, 0.0], [0.0; 6], below, above), 0.0);
+    // The even part: straight through along x (u_x = −l_x) against along y.
+    let (ax, bx) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.6, 0.0, -0.8));
+    let q = [-0.5, 0.0, 0.0, 0.0, 0.0, 0.0];
+    assert!((cloth_transmission_visibility([0.0; 4], q, bx, ax) - (1.0 - 0.5 * 0.72)).abs() < 1e-6);
+    assert_eq!(cloth_transmission_visibility([0.0; 4], q, Vec3::new(0.0, -0.6, -0.8), Vec3::new(0.0, 0.6, 0.8)), 1.0);
 }
 
 /// The openness (format 1.10): o straight down, closing with the slant at a rate its

@@ -295,8 +295,10 @@ pub struct ShadingVector {
     pub beta_t: f32,
     pub gamma_t: f32,
     pub tau: f32,
-    /// The transmission's gradient (g_u,x, g_u,y, g_l,x, g_l,y) (format 1.16).
+    /// The transmission's visibility (format 1.16): gradient (g_u,x, g_u,y, g_l,x, g_l,y)
+    /// and curvature (format 1.15's order).
     pub g_t: [f32; 4],
+    pub q_t: [f32; 6],
     /// `cloth_visibility_gradient(g, wi, wo)`.
     pub visibility_gradient: f32,
     /// `cloth_visibility(g, q, wi, wo)` (GLSL: q split as q0 = q[0..3], q1 = q[3..6]).
@@ -307,9 +309,9 @@ pub struct ShadingVector {
     pub diffuse_env_factor: f32,
     /// `cloth_openness(openness, wo)`.
     pub openness_value: f32,
-    /// `cloth_transmission_visibility(g_t, wi, wo)`.
+    /// `cloth_transmission_visibility(g_t, q_t, wi, wo)`.
     pub transmission_visibility: f32,
-    /// `cloth_transmission(transmission, cloth_frame(n, t), wi, wo)` (with g_t).
+    /// `cloth_transmission(transmission, cloth_frame(n, t), wi, wo)` (with g_t, q_t).
     pub transmission: [f32; 3],
 }
 
@@ -333,12 +335,13 @@ impl ShadingVector {
             gamma_t: tr.lobe.gamma,
             tau: tr.tau,
             g_t: tr.grad,
+            q_t: tr.curv,
             visibility_gradient: cloth_visibility_gradient(g, wi, wo),
             visibility: cloth_visibility(g, q, wi, wo),
             diffuse_cosine: [cloth_diffuse_cosine(DiffuseLaw::Lambert, nn, wi, wo), cloth_diffuse_cosine(DiffuseLaw::LommelSeeliger, nn, wi, wo)],
             diffuse_env_factor: cloth_diffuse_env_factor(DiffuseLaw::LommelSeeliger, wo),
             openness_value: cloth_openness(&gap, wo),
-            transmission_visibility: cloth_transmission_visibility(tr.grad, wi, wo),
+            transmission_visibility: cloth_transmission_visibility(tr.grad, tr.curv, wi, wo),
             transmission: cloth_transmission(&tr, &cloth_frame(n, t), wi, wo).to_array(),
         }
     }
@@ -347,7 +350,7 @@ impl ShadingVector {
     pub fn reevaluate(&self) -> ShadingVector {
         let v = |a: [f32; 3]| Vec3::from_array(a);
         let gap = ClothOpenness { o: self.openness[0], q: self.openness[1], aniso: [self.openness[2], self.openness[3]] };
-        let tr = ClothTransmission { kd: v(self.kdt), lobe: ClothLobe { k: v(self.kt), beta: self.beta_t, gamma: self.gamma_t }, tau: self.tau, gap, grad: self.g_t };
+        let tr = ClothTransmission { kd: v(self.kdt), lobe: ClothLobe { k: v(self.kt), beta: self.beta_t, gamma: self.gamma_t }, tau: self.tau, gap, grad: self.g_t, curv: self.q_t };
         ShadingVector::evaluate(v(self.n), v(self.t), v(self.wi), v(self.wo), self.g, self.q, tr)
     }
 
@@ -364,7 +367,7 @@ impl ShadingVector {
 pub fn shading_vectors() -> Vec<ShadingVector> {
     let mut rng = SplitMix64(0x5ad1_0067);
     let mut rows = Vec::new();
-    let tr0 = ClothTransmission { kd: Vec3::new(0.2, 0.1, 0.05), lobe: ClothLobe { k: Vec3::splat(0.8), beta: 0.2, gamma: 0.6 }, tau: 0.5, gap: ClothOpenness::default(), grad: [0.4, -0.3, 0.5, 0.2] };
+    let tr0 = ClothTransmission { kd: Vec3::new(0.2, 0.1, 0.05), lobe: ClothLobe { k: Vec3::splat(0.8), beta: 0.2, gamma: 0.6 }, tau: 0.5, gap: ClothOpenness::default(), grad: [0.4, -0.3, 0.5, 0.2], curv: [0.3, -0.2, 0.1, 0.5, -0.4, 0.2] };
     let gap0 = ClothOpenness { o: 0.3, q: 2.0, aniso: [0.5, -0.25] };
     let (g0, q0) = ([0.5, -0.3, 0.2, 0.4], [0.3, -0.2, 0.1, 0.6, -0.4, 0.2]);
     let up = Vec3::Z;
@@ -386,7 +389,7 @@ pub fn shading_vectors() -> Vec<ShadingVector> {
     }
     // Parameters past their clamps: openness and τ.
     let wild_gap = ClothOpenness { o: 2.0, q: 100.0, aniso: [3.0, -3.0] };
-    let wild_tr = ClothTransmission { kd: Vec3::splat(-1.0), lobe: ClothLobe { k: Vec3::splat(1e6), beta: 0.1, gamma: ClothLobe::GAMMA_OFF }, tau: 50.0, gap: wild_gap, grad: [5.0, -5.0, 5.0, -5.0] };
+    let wild_tr = ClothTransmission { kd: Vec3::splat(-1.0), lobe: ClothLobe { k: Vec3::splat(1e6), beta: 0.1, gamma: ClothLobe::GAMMA_OFF }, tau: 50.0, gap: wild_gap, grad: [5.0, -5.0, 5.0, -5.0], curv: [9.0, -9.0, 9.0, -9.0, 9.0, -9.0] };
     rows.push(ShadingVector::evaluate(Vec3::Z, Vec3::Y, slant, below, g0, q0, wild_tr));
     for _ in 0..40 {
         let n = rng.unit_vector() * 0.5 + Vec3::Z;
@@ -399,7 +402,8 @@ pub fn shading_vectors() -> Vec<ShadingVector> {
         let gap = ClothOpenness { o: rng.range(0.0, 1.0), q: rng.log_range(0.01, 80.0), aniso: [rng.range(-1.2, 1.2), rng.range(-1.2, 1.2)] };
         let lobe = ClothLobe { k: Vec3::new(rng.range(0.0, 2.0), rng.range(0.0, 2.0), rng.range(0.0, 2.0)), beta: rng.log_range(0.02, 1.0), gamma: if rng.next_f32() < 0.2 { ClothLobe::GAMMA_OFF } else { rng.log_range(0.05, 3.0) } };
         let grad = std::array::from_fn(|_| rng.range(-2.5, 2.5));
-        let tr = ClothTransmission { kd: Vec3::new(rng.range(0.0, 0.5), rng.range(0.0, 0.5), rng.range(0.0, 0.5)), lobe, tau: rng.range(0.0, 4.0), gap, grad };
+        let curv = std::array::from_fn(|_| rng.range(-2.5, 2.5));
+        let tr = ClothTransmission { kd: Vec3::new(rng.range(0.0, 0.5), rng.range(0.0, 0.5), rng.range(0.0, 0.5)), lobe, tau: rng.range(0.0, 4.0), gap, grad, curv };
         rows.push(ShadingVector::evaluate(n, t, wi, wo, g, q, tr));
     }
     rows

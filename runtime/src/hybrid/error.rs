@@ -56,10 +56,10 @@ pub enum ModelError {
     ViewTiltParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
     #[error("visibility gradient of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
     GradientParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
-    #[error("transmission gradient of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
-    TransmissionGradientParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
-    #[error("level {level} has a transmission gradient but no transmission records")]
-    TransmissionGradientAlone { level: usize },
+    #[error("transmission visibility of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
+    TransmissionVisibilityParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
+    #[error("level {level} has a transmission visibility but no transmission records")]
+    TransmissionVisibilityAlone { level: usize },
     #[error("visibility curvature of texel {texel}, level {level}: {field} = {value}, must be finite with |value| <= {max}")]
     CurvatureParam { level: usize, texel: usize, field: &'static str, value: f32, max: f32 },
     #[error("level 0 has a view tilt section; only coarse levels may (level 0 is seen through its own height field)")]

@@ -72,7 +72,7 @@ pub fn uniform_model(w: u32, h: u32, levels: usize, tile: Tile, depth: impl Fn(f
             }
             Surface::PerTexel(table)
         };
-        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None });
+        out.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_visibility: None, view_tilt: None, gradient: None, curvature: None });
     }
     let dims = [w, h, (tile.height_scale / tile.voxel_depth).round().max(1.0) as u32];
     let meta = example_meta(&tile, levels, dims);
@@ -132,7 +132,7 @@ pub fn sample_model() -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_visibility: None, view_tilt: None, gradient: None, curvature: None });
     }
     let meta = BakeMetadata { seed: 0x5eed, note: "sample_model: every section kind".into(), fit_error: vec![0.031, 0.045, -1.0, 0.12], ..example_meta(&tile, 4, [w, h, 16]) };
     let mut model = HybridModel { tile, height, levels, meta };
@@ -202,7 +202,7 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
             }
             Surface::PerTexel(table)
         };
-        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_gradient: None, view_tilt: None, gradient: None, curvature: None });
+        levels.push(Level { width: lw, height: lh, surface, flyaways: None, transmission: None, transmission_visibility: None, view_tilt: None, gradient: None, curvature: None });
     }
     // Level-0 flyaway voxels, then their downsampling.
     let mut voxels: Vec<(u32, u32, u16, Vec3)> = Vec::new();
@@ -240,11 +240,12 @@ pub fn synthetic_model(n: u32, seed: u64) -> HybridModel {
 
 /// Gives every level of `model` a transmission term (a BSDF, format 1.3): `t` scaled
 /// per texel by 0.5–1.5 in a checker of `cells` × `cells` over the tile, so that the
-/// texels differ and a renderer that reads the wrong one shows it. Where `t.grad` is not
-/// zero, each level also gets a transmission gradient (format 1.16): `t.grad` on one
-/// colour of the checker, its x terms negated on the other.
+/// texels differ and a renderer that reads the wrong one shows it. Where `t.grad` or
+/// `t.curv` is not zero, each level also gets a transmission visibility (format 1.16):
+/// `t.grad`, `t.curv` on one colour of the checker, the gradient's x terms and the
+/// curvature negated on the other.
 pub fn add_transmission(model: &mut HybridModel, t: &crate::brdf::ClothTransmission, cells: u32) {
-    use crate::hybrid::{PackedGradient, PackedTransmission};
+    use crate::hybrid::{PackedTransmission, PackedTransmissionVisibility};
     for l in model.levels.iter_mut() {
         let (w, h) = (l.width, l.height);
         let records = (0..h)
@@ -252,13 +253,13 @@ pub fn add_transmission(model: &mut HybridModel, t: &crate::brdf::ClothTransmiss
             .map(|(i, j)| {
                 let odd = ((i * cells / w) + (j * cells / h)) % 2 == 1;
                 let s = if odd { 1.5 } else { 0.5 };
-                PackedTransmission::new(&crate::brdf::ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau, gap: crate::brdf::ClothOpenness { o: t.gap.o * s / 1.5, ..t.gap }, grad: [0.0; 4] })
+                PackedTransmission::new(&crate::brdf::ClothTransmission { kd: t.kd * s, lobe: ClothLobe { k: t.lobe.k * s, ..t.lobe }, tau: t.tau, gap: crate::brdf::ClothOpenness { o: t.gap.o * s / 1.5, ..t.gap }, grad: [0.0; 4], curv: [0.0; 6] })
             })
             .collect();
         l.transmission = Some(records);
-        if t.grad != [0.0; 4] {
+        if t.grad != [0.0; 4] || t.curv != [0.0; 6] {
             let [ux, uy, lx, ly] = t.grad;
-            l.transmission_gradient = Some(checker(l, cells, PackedGradient::new(t.grad), PackedGradient::new([-ux, uy, -lx, ly])));
+            l.transmission_visibility = Some(checker(l, cells, PackedTransmissionVisibility::new(t.grad, t.curv), PackedTransmissionVisibility::new([-ux, uy, -lx, ly], t.curv.map(|q| -q))));
         }
     }
 }

@@ -14,7 +14,7 @@
 //! | 4       | `texels`             | [`ClusteredTexel`] of every clustered level |
 //! | 5       | `fly_heads`          | list heads (level-local node indices)      |
 //! | 6       | `fly_nodes`          | [`FlyawayNode`] (level-local `next`, `param`), then `fly_spread_words`: per node of every level with spread records, its [`PackedAxisSpread`] (two 4-byte words) and its [`PackedAxisGroup`] (one word, zero without one): three words per node (`GpuLevel::spread_base`) |
-//! | 12      | `transmissions`      | [`GpuTransmission`] of every BSDF level: the file's [`PackedTransmission`] and its [`PackedGradient`] (format 1.16; zero where the level has none), 32 bytes (one zero record when none) |
+//! | 12      | `transmissions`      | [`GpuTransmission`] of every BSDF level: the file's [`PackedTransmission`] and its [`PackedTransmissionVisibility`] (format 1.16; zero where the level has none), 48 bytes (one zero record when none) |
 //! | 13      | `view_tilts`         | [`PackedViewTilt`] of every coarse level that has them (one zero record when none) |
 //!
 //! Indices stored in the records stay as the file has them (local to their table or
@@ -25,7 +25,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::flyaway::{FlyawayNode, PackedAxisGroup, PackedAxisSpread};
-use super::lobe::{BrdfHeader, ClusteredTexel, PackedGradient, PackedLobe, PackedTransmission, PackedViewTilt};
+use super::lobe::{BrdfHeader, ClusteredTexel, PackedLobe, PackedTransmission, PackedTransmissionVisibility, PackedViewTilt};
 use super::model::{HybridModel, Surface};
 use super::ModelError;
 use crate::cpu::heightfield::HeightTracer;
@@ -273,8 +273,8 @@ impl GpuModel {
             };
             g.trans_base = match &l.transmission {
                 Some(t) => {
-                    let grad = |k: usize| l.transmission_gradient.as_ref().map_or(PackedGradient::default(), |g| g[k]);
-                    out.transmissions.extend(t.iter().enumerate().map(|(k, &record)| GpuTransmission { record, grad: grad(k) }));
+                    let vis = |k: usize| l.transmission_visibility.as_ref().map_or(PackedTransmissionVisibility::default(), |v| v[k]);
+                    out.transmissions.extend(t.iter().enumerate().map(|(k, &record)| GpuTransmission { record, vis: vis(k), pad: 0 }));
                     (out.transmissions.len() - t.len()) as u32
                 }
                 None => crate::hybrid::NO_NODE,
@@ -358,7 +358,7 @@ impl GpuModel {
     /// Binding 12: the transmission records of every BSDF level (one zero record when
     /// the model has none).
     pub fn transmission_array(&self) -> (&'static str, Vec<u8>) {
-        ("transmission records", bytes(&self.transmissions, 32))
+        ("transmission records", bytes(&self.transmissions, 48))
     }
 
     /// Binding 13: the view tilt records of every coarse level that has them, then the
@@ -388,17 +388,18 @@ fn bytes<T: Pod>(v: &[T], min: usize) -> Vec<u8> {
     b
 }
 
-/// A transmission record as binding 12 holds it: the file's record and the texel's
-/// transmission gradient (format 1.16; zero without one), four `uvec2` in GLSL
-/// (`packed_transmission` in shaders/common/model.glsl).
+/// A transmission record as binding 12 holds it: the file's record, the texel's
+/// transmission visibility (format 1.16; zero without one) and a pad word, six `uvec2`
+/// in GLSL (`packed_transmission` in shaders/common/model.glsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct GpuTransmission {
     pub record: PackedTransmission,
-    pub grad: PackedGradient,
+    pub vis: PackedTransmissionVisibility,
+    pub pad: u32,
 }
 
-const _: () = assert!(core::mem::size_of::<GpuTransmission>() == 32);
+const _: () = assert!(core::mem::size_of::<GpuTransmission>() == 48);
 
 /// Most lights one frame is drawn with.
 pub const GPU_MAX_LIGHTS: usize = 8;

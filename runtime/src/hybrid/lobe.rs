@@ -94,11 +94,11 @@ impl PackedTransmission {
         PackedTransmission { kd: t.kd.to_array().map(f16_bits), k: t.lobe.k.to_array().map(f16_bits), beta: f16_bits(t.lobe.beta), gamma: f16_bits(t.lobe.gamma), tau: f16_bits(t.tau), gap: [f16_bits(t.gap.o), f16_bits(t.gap.q)], gap_aniso: u16::from_le_bytes([snorm8(t.gap.aniso[0]), snorm8(t.gap.aniso[1])]) }
     }
 
-    /// The record's term; its gradient (format 1.16) is in its own section, zero here
+    /// The record's term; its visibility (format 1.16) is in its own section, zero here
     /// (`Level::texel_brdf` fills it in).
     pub fn decode(&self) -> ClothTransmission {
         let v = |b: [u16; 3]| Vec3::new(f16_value(b[0]), f16_value(b[1]), f16_value(b[2]));
-        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]), aniso: self.gap_aniso.to_le_bytes().map(snorm8_value) }, grad: [0.0; 4] }
+        ClothTransmission { kd: v(self.kd), lobe: ClothLobe { k: v(self.k), beta: f16_value(self.beta), gamma: f16_value(self.gamma) }, tau: f16_value(self.tau), gap: ClothOpenness { o: f16_value(self.gap[0]), q: f16_value(self.gap[1]), aniso: self.gap_aniso.to_le_bytes().map(snorm8_value) }, grad: [0.0; 4], curv: [0.0; 6] }
     }
 
     /// Checks one record (texel `texel` of level `level`): finite k's ≥ 0, β and γ in
@@ -225,6 +225,48 @@ impl PackedCurvature {
     }
 }
 
+/// A BSDF texel's transmission visibility (format 1.16): the gradient g and curvature q
+/// of [`crate::brdf::cloth_transmission_visibility`], as the reflection's records hold
+/// them. 20 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct PackedTransmissionVisibility {
+    pub g: PackedGradient,
+    pub q: PackedCurvature,
+}
+
+impl PackedTransmissionVisibility {
+    /// Packs `g` and `q`, each clamped as its reflection twin's record clamps it.
+    pub fn new(g: [f32; 4], q: [f32; 6]) -> PackedTransmissionVisibility {
+        PackedTransmissionVisibility { g: PackedGradient::new(g), q: PackedCurvature::new(q) }
+    }
+
+    pub fn decode(&self) -> ([f32; 4], [f32; 6]) {
+        (self.g.decode(), self.q.decode())
+    }
+
+    /// Checks one record (texel `texel` of level `level`): finite, within the clamps;
+    /// the gradient's fields named for the sides of the sheet (g_u above, g_l below).
+    pub fn validate(&self, level: usize, texel: usize) -> Result<(), ModelError> {
+        let named = |e: ModelError| match e {
+            ModelError::GradientParam { level, texel, field, value, max } | ModelError::CurvatureParam { level, texel, field, value, max } => {
+                let field = match field {
+                    "g_o.x" => "g_u.x",
+                    "g_o.y" => "g_u.y",
+                    "g_i.x" => "g_l.x",
+                    "g_i.y" => "g_l.y",
+                    q => q,
+                };
+                ModelError::TransmissionVisibilityParam { level, texel, field, value, max }
+            }
+            e => e,
+        };
+        self.g.validate(level, texel).map_err(named)?;
+        self.q.validate(level, texel).map_err(named)
+    }
+}
+
+const _: () = assert!(core::mem::size_of::<PackedTransmissionVisibility>() == 20);
 const _: () = assert!(core::mem::size_of::<PackedGradient>() == 8);
 const _: () = assert!(core::mem::size_of::<PackedCurvature>() == 12);
 const _: () = assert!(core::mem::size_of::<PackedViewTilt>() == 12);

@@ -41,6 +41,6 @@ pub mod stats;
 
 pub use error::{ModelError, TableKind};
 pub use flyaway::{FlyawayNode, FlyawayInput, Flyaways, NO_NODE, PATH_GAIN_NODES, PackedAxisGroup, PackedAxisSpread, PathGain};
-pub use lobe::{BrdfHeader, BrdfTable, ClusteredTexel, PackedCurvature, PackedGradient, PackedLobe, PackedTransmission, PackedViewTilt, TexelBrdf, VIEW_TILT_MAX, decode_frame, encode_frame};
+pub use lobe::{BrdfHeader, BrdfTable, ClusteredTexel, PackedCurvature, PackedGradient, PackedLobe, PackedTransmission, PackedTransmissionVisibility, PackedViewTilt, TexelBrdf, VIEW_TILT_MAX, decode_frame, encode_frame};
 pub use model::{BakeMetadata, HeightField, HybridModel, Level, MAX_DIM, Surface, Tile, level_dims, max_levels};
 pub use stats::{LevelStats, ModelStats, model_stats};

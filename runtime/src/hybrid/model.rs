@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::error::{ModelError, TableKind};
 use super::flyaway::Flyaways;
-use super::lobe::{BrdfTable, ClusteredTexel, PackedCurvature, PackedGradient, PackedTransmission, PackedViewTilt, TexelBrdf};
+use super::lobe::{BrdfTable, ClusteredTexel, PackedCurvature, PackedGradient, PackedTransmission, PackedTransmissionVisibility, PackedViewTilt, TexelBrdf};
 use super::packing::{unorm16, unorm16_value};
 use crate::brdf::BrdfReading;
 use crate::scene::Aabb;
@@ -153,10 +153,10 @@ pub struct Level {
     /// The transmission term per texel (x fastest), in each texel's lobe-0 frame: a
     /// BSDF model (format 1.3). `None`: nothing comes through from below the sheet.
     pub transmission: Option<Vec<PackedTransmission>>,
-    /// The transmission's visibility gradient per texel (x fastest), only beside
+    /// The transmission visibility (gradient and curvature) per texel (x fastest), only beside
     /// `transmission` (format 1.16, [`crate::brdf::cloth_transmission_visibility`]).
     /// `None`: M_t = 1 everywhere.
-    pub transmission_gradient: Option<Vec<PackedGradient>>,
+    pub transmission_visibility: Option<Vec<PackedTransmissionVisibility>>,
     /// The view tilt per texel (x fastest) of a coarse level: its frames turn toward
     /// the viewer as its footprint's visible normals do (format 1.4,
     /// [`crate::brdf::visible_normal`]). `None`: the frames as stored (always at level 0).
@@ -182,8 +182,8 @@ impl Level {
         };
         if let Some(t) = &self.transmission {
             b.transmission = t[index].decode();
-            if let Some(g) = &self.transmission_gradient {
-                b.transmission.grad = g[index].decode();
+            if let Some(v) = &self.transmission_visibility {
+                (b.transmission.grad, b.transmission.curv) = v[index].decode();
             }
         }
         if let Some(g) = &self.gradient {
@@ -217,7 +217,7 @@ impl Level {
 
     /// Bytes of the transmission records in the file, with their gradients (0 without).
     pub fn transmission_bytes(&self) -> u64 {
-        self.transmission.as_ref().map_or(0, |t| (t.len() * size_of::<PackedTransmission>()) as u64) + self.transmission_gradient.as_ref().map_or(0, |g| (g.len() * size_of::<PackedGradient>()) as u64)
+        self.transmission.as_ref().map_or(0, |t| (t.len() * size_of::<PackedTransmission>()) as u64) + self.transmission_visibility.as_ref().map_or(0, |g| (g.len() * size_of::<PackedTransmissionVisibility>()) as u64)
     }
 
     /// Bytes of the surface encoding in the file.
@@ -274,17 +274,6 @@ pub struct HybridModel {
     /// Level 0 first; 1 ≤ count ≤ ⌊log2 max(w, h)⌋ + 1.
     pub levels: Vec<Level>,
     pub meta: BakeMetadata,
-}
-
-/// A gradient record's field named as the transmission gradient's (g_u: the side above
-/// the tile plane, g_l: below).
-fn transmission_gradient_field(field: &'static str) -> &'static str {
-    match field {
-        "g_o.x" => "g_u.x",
-        "g_o.y" => "g_u.y",
-        "g_i.x" => "g_l.x",
-        _ => "g_l.y",
-    }
 }
 
 /// Dimensions of level `level` for a level-0 size of `w`×`h`: halved, rounding up.
@@ -398,18 +387,15 @@ impl HybridModel {
                     r.validate(level, texel)?;
                 }
             }
-            if let Some(g) = &l.transmission_gradient {
+            if let Some(g) = &l.transmission_visibility {
                 if l.transmission.is_none() {
-                    return Err(ModelError::TransmissionGradientAlone { level });
+                    return Err(ModelError::TransmissionVisibilityAlone { level });
                 }
                 if g.len() as u64 != texels {
-                    return Err(ModelError::Length { what: "transmission gradient records", level, expected: texels, got: g.len() as u64 });
+                    return Err(ModelError::Length { what: "transmission visibility records", level, expected: texels, got: g.len() as u64 });
                 }
                 for (texel, r) in g.iter().enumerate() {
-                    r.validate(level, texel).map_err(|e| match e {
-                        ModelError::GradientParam { level, texel, field, value, max } => ModelError::TransmissionGradientParam { level, texel, field: transmission_gradient_field(field), value, max },
-                        e => e,
-                    })?;
+                    r.validate(level, texel)?;
                 }
             }
             if let Some(g) = &l.gradient {

@@ -223,7 +223,7 @@ pub fn model_stats(m: &HybridModel) -> ModelStats {
             st.openness = Some(o.range());
             st.open_texels = Some(t.iter().filter(|r| r.decode().gap.o > 0.0).count() as f64 / t.len().max(1) as f64);
         }
-        st.transmission_gradient_median = level.transmission_gradient.as_ref().and_then(|g| median_norm(g.iter().map(|r| r.decode())));
+        st.transmission_gradient_median = level.transmission_visibility.as_ref().and_then(|g| median_norm(g.iter().map(|r| r.decode().0)));
         st.view_tilt_bytes = level.view_tilt_bytes();
         st.gradient_bytes = level.gradient_bytes();
         st.gradient_median = level.gradient.as_ref().and_then(|g| median_norm(g.iter().map(|r| r.decode())));

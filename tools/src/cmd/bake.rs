@@ -261,13 +261,17 @@ pub struct BakeArgs {
     /// map below the sheet is seen straight through (format 1.10; 0: none).
     #[arg(long, default_value_t = 8)]
     pub openness_rays: u32,
-    /// With --bsdf, leave out the transmission gradient (format 1.16: each texel's
-    /// transmission scaled by the slant of the viewer and the light across the tile,
-    /// fitted with its k's; baker/FIT_MEASUREMENTS.md, "Transmission").
+    /// With --bsdf, leave out the transmission visibility (format 1.16: each texel's
+    /// transmission scaled by the slant of the viewer and the light across the tile, its
+    /// gradient and curvature, fitted with its k's; baker/FIT_MEASUREMENTS.md,
+    /// "Transmission").
     #[arg(long)]
     pub no_transmission_gradient: bool,
-    /// Ridge of the transmission gradient's fit towards g = 0, relative to its normal
-    /// equations' mean diagonal.
+    /// With --bsdf, the transmission visibility's gradient alone (no curvature).
+    #[arg(long)]
+    pub no_transmission_curvature: bool,
+    /// Ridge of the transmission visibility's fit towards g = 0 and q = 0, relative to
+    /// its normal equations' mean diagonal.
     #[arg(long, default_value_t = fabric_baker::fit::transmission::GRADIENT_RIDGE)]
     pub transmission_gradient_ridge: f64,
     #[command(flatten)]
@@ -376,7 +380,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
     if args.bsdf_spp.is_some_and(|s| s < 2) {
         bail!("--bsdf-spp {}: need at least 2 (two halves)", args.bsdf_spp.unwrap_or(0));
     }
-    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, gradient_ridge: (!args.no_transmission_gradient).then_some(args.transmission_gradient_ridge), ..Default::default() });
+    options.transmission = args.bsdf.then(|| fabric_baker::fit::transmission::TransmissionFitOptions { tau_max: args.tau_max, spp: args.bsdf_spp.unwrap_or(0), openness_rays: args.openness_rays, gradient_ridge: (!args.no_transmission_gradient).then_some(args.transmission_gradient_ridge), curvature_ridge: (!args.no_transmission_curvature).then_some(args.transmission_gradient_ridge), ..Default::default() });
     options.validate()?;
     options.geometry.validate()?;
     if args.held_out_spp < 2 {
@@ -539,7 +543,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             t.fit_seconds
         );
         if let (Some((e, b)), Some(g)) = (t.without_gradient, t.gradient_median) {
-            println!("  transmission gradient: median |g| {g:.3}; without it {:.2}% per texel, {:.2}% over 4x4 blocks", 100.0 * e, 100.0 * b);
+            println!("  transmission visibility: median gradient |g| {g:.3}; without it {:.2}% per texel, {:.2}% over 4x4 blocks", 100.0 * e, 100.0 * b);
         }
         if let Some(o) = &t.openness {
             let at = |v: &[f64]| v.iter().map(|x| format!("{:.2}%", 100.0 * x)).collect::<Vec<_>>().join("/");

@@ -81,7 +81,7 @@ pub fn text_report(path: &Path, info: &FileInfo) -> String {
                 let _ = writeln!(s, "    openness straight down (the gaps between yarns): {} over texels, {:.1}% of texels open", range(o), 100.0 * f);
             }
             if let Some(m) = l.transmission_gradient_median {
-                let _ = writeln!(s, "    transmission gradient per texel (format 1.16): |g| median {m:.2} (counted in the transmission's bytes)");
+                let _ = writeln!(s, "    transmission visibility per texel (format 1.16): gradient |g| median {m:.2} (counted in the transmission's bytes)");
             }
         }
         if let Some(m) = l.gradient_median {

@@ -114,7 +114,7 @@ pub enum SectionKind {
     Curvature = 52,
     /// Per level with TRANSMISSION, optional (1.16): the transmission's visibility
     /// gradient per texel (8 bytes each).
-    TransmissionGradient = 53,
+    TransmissionVisibility = 53,
 }
 
 impl SectionKind {
@@ -141,7 +141,7 @@ impl SectionKind {
         SectionKind::ViewTiltCompact,
         SectionKind::Gradient,
         SectionKind::Curvature,
-        SectionKind::TransmissionGradient,
+        SectionKind::TransmissionVisibility,
     ];
 
     pub fn from_u32(v: u32) -> Option<SectionKind> {
@@ -177,7 +177,7 @@ impl SectionKind {
             SectionKind::ViewTiltCompact => "VIEW_TILT_COMPACT",
             SectionKind::Gradient => "GRADIENT",
             SectionKind::Curvature => "CURVATURE",
-            SectionKind::TransmissionGradient => "TRANSMISSION_GRADIENT",
+            SectionKind::TransmissionVisibility => "TRANSMISSION_VISIBILITY",
         }
     }
 }

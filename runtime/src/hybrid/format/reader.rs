@@ -356,11 +356,11 @@ fn read_model(bytes: &[u8], container: &Container) -> Result<HybridModel, Format
             Some(_) => Some(s.array(SectionKind::Curvature, l)?),
             None => None,
         };
-        let transmission_gradient = match s.get(SectionKind::TransmissionGradient, l) {
-            Some(_) => Some(s.array(SectionKind::TransmissionGradient, l)?),
+        let transmission_visibility = match s.get(SectionKind::TransmissionVisibility, l) {
+            Some(_) => Some(s.array(SectionKind::TransmissionVisibility, l)?),
             None => None,
         };
-        levels.push(Level { width, height, surface, flyaways, transmission, transmission_gradient, view_tilt, gradient, curvature });
+        levels.push(Level { width, height, surface, flyaways, transmission, transmission_visibility, view_tilt, gradient, curvature });
     }
     let (source_bbox, source_dims, seed, fit_error, note) = match s.get(SectionKind::Meta, 0) {
         Some((index, data)) => parse_meta_section(index, data, mh.levels)?,

@@ -99,9 +99,9 @@ fn sections(m: &HybridModel) -> Vec<(SectionKind, u32, u32, Vec<u8>)> {
         if let Some(t) = &l.transmission {
             out.push((SectionKind::Transmission, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(t))));
         }
-        // Optional: a 1.15 reader skips it and shades the transmission as if g = 0.
-        if let Some(g) = &l.transmission_gradient {
-            out.push((SectionKind::TransmissionGradient, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(g))));
+        // Optional: a 1.15 reader skips it and shades the transmission with M_t = 1.
+        if let Some(g) = &l.transmission_visibility {
+            out.push((SectionKind::TransmissionVisibility, SECTION_OPTIONAL, level, bytes(bytemuck::cast_slice(g))));
         }
         if let Some(t) = &l.view_tilt {
             match compact::compact_view_tilts(t) {
