@@ -36,7 +36,7 @@
 //! every ω_i ([`transmission_albedo`]); a fit whose worst T exceeds [`ALBEDO_MAX`] is
 //! scaled down to it ([`cap_energy`]).
 
-use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission, GRADIENT_MAX, K_MAX, TAU_MAX, cloth_angles, cloth_lobe_shape, cloth_mirror_z, cloth_transmission, cloth_transmission_attenuation, cloth_transmission_visibility};
+use fabric_runtime::brdf::{BrdfReading, ClothFrame, ClothLobe, ClothTransmission, CURVATURE_MAX, GRADIENT_MAX, K_MAX, TAU_MAX, cloth_angles, cloth_lobe_shape, cloth_mirror_z, cloth_transmission, cloth_transmission_attenuation, cloth_transmission_visibility};
 use glam::{DVec3, Vec3};
 
 use super::cluster_fit::LOBE_SUPPORT_MIN;
@@ -335,11 +335,13 @@ pub fn worst_albedo(t: &ClothTransmission, frame: &ClothFrame) -> f32 {
 
 /// A bound on the transmitted albedo with no quadrature: (π·k_dt + 2π·k_t) per channel
 /// (∫ G dθ ≤ 1 over θ, P ≤ 1 over φ ∈ (−π, π], both cosines ≤ 1; dω = cos θ dθ dφ)
-/// times the gradient's largest M_t, 1 + |g_u| + |g_l| (|ω_xy| ≤ 1 on either side).
+/// times the visibility's largest M_t, 1 + |g_u| + |g_l| + 2·Σ|q_k| (|ω_xy| ≤ 1 on
+/// either side, and no even term exceeds 2 in size).
 pub fn albedo_bound(t: &ClothTransmission) -> f32 {
     let pi = std::f32::consts::PI;
     let c = t.grad.map(|g| if g.is_finite() { g.clamp(-GRADIENT_MAX, GRADIENT_MAX) } else { 0.0 });
-    let m_max = 1.0 + c[0].hypot(c[1]) + c[2].hypot(c[3]);
+    let even: f32 = t.curv.iter().map(|q| if q.is_finite() { q.abs().min(CURVATURE_MAX) } else { 0.0 }).sum();
+    let m_max = 1.0 + c[0].hypot(c[1]) + c[2].hypot(c[3]) + 2.0 * even;
     (t.kd.max(Vec3::ZERO) * pi + t.lobe.k.max(Vec3::ZERO) * (2.0 * pi)).max_element() * m_max
 }
 
@@ -471,7 +473,7 @@ mod tests {
         assert_eq!(cap_energy(&truth(), &frame), truth());
         assert!(worst_albedo(&truth(), &frame) < 1.0);
         // The cheap bound is a bound, on tilted frames too, with a transmission visibility.
-        let graded = ClothTransmission { grad: [0.8, -0.5, -0.9, 0.4], ..truth() };
+        let graded = ClothTransmission { grad: [0.8, -0.5, -0.9, 0.4], curv: [0.6, -0.4, 0.5, -0.7, 0.3, 0.45], ..truth() };
         for t in [truth(), bright, diffuse, graded] {
             for n in [Vec3::Z, Vec3::new(0.5, 0.2, 1.0)] {
                 let f = cloth_frame(n, Vec3::new(1.0, 0.3, 0.0));
