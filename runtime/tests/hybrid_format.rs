@@ -228,7 +228,7 @@ fn a_bsdf_round_trips_and_a_reader_that_skips_its_transmission_reads_the_brdf() 
     let mut parts = Parts::of(&bytes);
     for (e, _) in parts.sections.iter_mut().filter(|(e, _)| e.kind == SectionKind::Transmission as u32 || e.kind == SectionKind::TransmissionVisibility as u32) {
         assert_eq!(e.flags & SECTION_OPTIONAL, SECTION_OPTIONAL);
-        e.kind = 4000 + e.kind;
+        e.kind += 4000;
     }
     let brdf = format::read(&parts.assemble()).unwrap();
     assert!(!brdf.has_transmission());
