@@ -34,12 +34,12 @@ use fabric_runtime::cpu::heightfield::HeightTracer;
 use fabric_runtime::brdf::{ClothOpenness, ClothTransmission, OPENNESS_Q_MAX, cloth_frame, cloth_mirror_z};
 use crate::fit::gradient::{Visibility, gradient_least_squares, visibility_least_squares};
 use fabric_runtime::cpu::shading::{texel_response, texel_transmission_response};
-use fabric_runtime::hybrid::{PackedCurvature, PackedGradient, PackedTransmission, TexelBrdf, decode_frame, encode_frame};
+use fabric_runtime::hybrid::{PackedCurvature, PackedGradient, PackedTransmission, PackedTransmissionVisibility, TexelBrdf, decode_frame, encode_frame};
 use fabric_runtime::hybrid::compact;
 use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
 
-use crate::fit::transmission::{TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission};
+use crate::fit::transmission::{GRADIENT_RIDGE as TRANSMISSION_RIDGE, TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission, predict_transmission, refine_transmission_visibility_from};
 use crate::progress::{Progress, stage};
 use crate::reference::rng::mix64;
 use lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
@@ -241,6 +241,9 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
     // A BSDF: the transmission term is prefiltered too, on the pairs with the light
     // mirrored below the sheet, against the plain mean of the footprint's level-0 terms.
     let bsdf = model.levels[0].transmission.is_some();
+    // Level 0's transmission visibility (format 1.16): the coarse levels fit their own
+    // to their footprint's terms (which carry level 0's).
+    let seen = bsdf && model.levels[0].transmission_visibility.is_some();
     // Level 0's visibility gradients (format 1.12): the coarse levels fit their own, and
     // their own curvatures where level 0 has them (format 1.15).
     let graded = model.levels[0].gradient.is_some();
@@ -324,8 +327,15 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                     let frame = fit.lobes.first().map_or(cloth_frame(Vec3::Z, Vec3::X), |(_, n, t)| decode_frame_of(*n, *t));
                     let samples: Vec<TransTarget> = backlit.iter().zip(&t_acc).map(|(&(wi, wo), &radiance)| TransTarget { geo: TransGeo::new(&frame, wi, wo), radiance }).collect();
                     let f = fit_transmission(&samples, &TransmissionFitOptions { max_evals: 120, restarts: 1, ..Default::default() });
+                    let (t, residual) = if seen {
+                        let t = refine_transmission_visibility_from(f.transmission, &samples, &f.transmission, 1e-6, TRANSMISSION_RIDGE, Some(TRANSMISSION_RIDGE));
+                        let (d2, r2) = samples.iter().fold((0f64, 0f64), |(d, r), s| (d + (predict_transmission(&t, &s.geo) - s.radiance).as_dvec3().length_squared(), r + s.radiance.as_dvec3().length_squared()));
+                        (t, if r2 > 0.0 { (d2 / r2).sqrt() } else { 0.0 })
+                    } else {
+                        (f.transmission, f.relative_residual())
+                    };
                     let gap = coarse_openness(&kids.iter().map(|&(ci, cj, n)| (finer.texel_brdf(ci, cj).transmission.gap, n as f32 / total.max(1) as f32)).collect::<Vec<_>>());
-                    (ClothTransmission { gap, ..cap_energy(&f.transmission, &frame) }, t_acc, f.relative_residual())
+                    (ClothTransmission { gap, ..cap_energy(&t, &frame) }, t_acc, residual)
                 });
                 bar.advance(1);
                 (fit, gradient, acc, trans, swept)
@@ -338,6 +348,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
         let mut lobes_total = 0usize;
         let mut lobes_max = 0usize;
         let mut trans_records = Vec::new();
+        let mut trans_visibility = Vec::new();
         let mut trans_targets = Vec::new();
         let mut trans_error = 0f64;
         let mut swept = 0usize;
@@ -354,6 +365,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             targets.extend(acc);
             if let Some((t, t_acc, e)) = trans {
                 trans_records.push(PackedTransmission::new(&t));
+                trans_visibility.push(PackedTransmissionVisibility::new(t.grad, t.curv));
                 trans_targets.extend(t_acc);
                 trans_error += e;
             }
@@ -377,7 +389,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
             compact::quantize_table(&mut table);
             flyaways.iter_mut().for_each(compact::quantize_flyaway_nodes);
         }
-        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), transmission_visibility: None, view_tilt: None, gradient: graded.then_some(gradients), curvature: curved.then_some(curvatures) };
+        let mut l = Level { width: lw, height: lh, surface: Surface::PerTexel(table), flyaways, transmission: bsdf.then_some(trans_records), transmission_visibility: seen.then_some(trans_visibility), view_tilt: None, gradient: graded.then_some(gradients), curvature: curved.then_some(curvatures) };
         let t_level = Instant::now();
         let fitted = tilts.as_mut().map(|t| t.fit_level(model, level, &l, reading));
         report.view_tilt_seconds += t_level.elapsed().as_secs_f64();

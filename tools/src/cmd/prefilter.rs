@@ -182,7 +182,9 @@ pub fn print_report(r: &PrefilterReport) {
     }
     let trans: Vec<String> = r.levels.iter().filter_map(|l| l.transmission_fit_error.map(|e| format!("{} {:.2}%", l.level, 100.0 * e))).collect();
     if !trans.is_empty() {
-        println!("  transmission (BSDF), fit error per level: {}; 24 bytes per texel", trans.join(", "));
+        // 24 bytes per texel, 44 with the transmission visibility (format 1.16).
+        let (bytes, texels) = r.levels.iter().fold((0u64, 0u64), |(b, t), l| (b + l.transmission_bytes, t + (l.width * l.height) as u64));
+        println!("  transmission (BSDF), fit error per level: {}; {:.0} bytes per texel", trans.join(", "), bytes as f64 / texels.max(1) as f64);
     }
     let tilt: Vec<String> = r.levels.iter().filter_map(|l| l.view_tilt_error.map(|(a, b)| format!("{} {:.1}->{:.1}%", l.level, 100.0 * a, 100.0 * b))).collect();
     if !tilt.is_empty() {
