@@ -431,7 +431,7 @@ pub struct TransmissionReport {
     /// With the transmission visibility (format 1.16): the training error per pixel and
     /// over 4×4 blocks of the same refinement without it (energy capped as the kept
     /// one), and the median |g| over the texels; None without the gradient.
-    pub without_gradient: Option<(f64, f64)>,
+    pub without_visibility: Option<(f64, f64)>,
     pub gradient_median: Option<f32>,
     /// The largest transmitted albedo of any texel after the cap (`albedo_estimate`: an
     /// upper bound where below 1), and how many texels the cap scaled down.
@@ -1228,11 +1228,11 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         None => ((0..texels).map(|j| fits[clusters[j] as usize].transmission).collect(), None),
     };
     let capped: Vec<ClothTransmission> = refined.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
-    let without_gradient = without.map(|plain| {
+    let without_visibility = without.map(|plain| {
         let capped_plain: Vec<ClothTransmission> = plain.par_iter().zip(frames).map(|(t, f)| cap_energy(t, f)).collect();
         image_errors(&predict_all(&|j| capped_plain[j]), &training.images, nx, ny)
     });
-    let gradient_median = without_gradient.is_some().then(|| median(capped.iter().map(|t| t.grad.iter().map(|x| x * x).sum::<f32>().sqrt()).collect()));
+    let gradient_median = without_visibility.is_some().then(|| median(capped.iter().map(|t| t.grad.iter().map(|x| x * x).sum::<f32>().sqrt()).collect()));
     let capped_texels = capped.iter().zip(&refined).filter(|(a, b)| a != b).count();
     let worst_albedo = capped.par_iter().zip(frames).map(|(t, f)| albedo_estimate(t, f)).reduce(|| 0.0, f32::max);
     let predictions = predict_all(&|j| capped[j]);
@@ -1244,7 +1244,7 @@ fn fit_texel_transmission(skeleton: &HybridModel, frames: &[ClothFrame], measure
         .filter_map(|(c, f)| f.problem.clone().map(|problem| ClusterProblem { cluster: c, texels: clusters.iter().filter(|&&x| x as usize == c).count(), problem }))
         .collect();
     let pair_errors = predictions.iter().zip(&training.images).map(|(p, r)| (image_errors(std::slice::from_ref(p), std::slice::from_ref(r), nx, ny).1, p.mean() / r.mean().max(1e-30))).collect();
-    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, without_gradient, gradient_median, worst_albedo, capped_texels, problems, openness: None, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
+    let report = TransmissionReport { pairs: backlit, noise_floor: training.noise, cluster_error, error, block_error, pair_errors, without_visibility, gradient_median, worst_albedo, capped_texels, problems, openness: None, render_seconds, fit_seconds: t.elapsed().as_secs_f64() };
     Ok((capped, report))
 }
 

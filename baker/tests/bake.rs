@@ -164,7 +164,7 @@ fn a_bsdf_bake_fits_the_light_that_comes_through() {
     // The transmission visibility (format 1.16), on by default: it fits the training
     // images better than the same refinement without it, and the coarse levels fit
     // their own.
-    let (e_without, b_without) = t.without_gradient.expect("the transmission visibility is on by default");
+    let (e_without, b_without) = t.without_visibility.expect("the transmission visibility is on by default");
     eprintln!("without the transmission visibility: error {e_without:.3} (blocks {b_without:.3}); median |g| {:?}", t.gradient_median);
     assert!(b.model.levels.iter().all(|l| l.transmission_visibility.is_some()));
     assert!(t.error < e_without && t.block_error < b_without, "{t:?}");

@@ -39,7 +39,7 @@ use fabric_runtime::hybrid::compact;
 use fabric_runtime::hybrid::stats::luminance;
 use fabric_runtime::hybrid::{BrdfTable, HybridModel, Level, ModelError, Surface, level_dims, max_levels};
 
-use crate::fit::transmission::{GRADIENT_RIDGE as TRANSMISSION_RIDGE, TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission, predict_transmission, refine_transmission_visibility_from};
+use crate::fit::transmission::{GRADIENT_RIDGE as TRANSMISSION_RIDGE, TransGeo, TransTarget, TransmissionFitOptions, cap_energy, fit_transmission, refine_transmission_visibility_from, relative_residual};
 use crate::progress::{Progress, stage};
 use crate::reference::rng::mix64;
 use lobe_fit::{Candidate, CoarseFit, FitSettings, Footprint, fit_footprint};
@@ -329,8 +329,7 @@ pub fn prefilter(model: &HybridModel, opts: &PrefilterOptions, progress: &dyn Pr
                     let f = fit_transmission(&samples, &TransmissionFitOptions { max_evals: 120, restarts: 1, ..Default::default() });
                     let (t, residual) = if seen {
                         let t = refine_transmission_visibility_from(f.transmission, &samples, &f.transmission, 1e-6, TRANSMISSION_RIDGE, Some(TRANSMISSION_RIDGE));
-                        let (d2, r2) = samples.iter().fold((0f64, 0f64), |(d, r), s| (d + (predict_transmission(&t, &s.geo) - s.radiance).as_dvec3().length_squared(), r + s.radiance.as_dvec3().length_squared()));
-                        (t, if r2 > 0.0 { (d2 / r2).sqrt() } else { 0.0 })
+                        (t, relative_residual(&t, &samples))
                     } else {
                         (f.transmission, f.relative_residual())
                     };

@@ -215,7 +215,8 @@ impl Level {
         self.curvature.as_ref().map_or(0, |q| (q.len() * size_of::<PackedCurvature>()) as u64)
     }
 
-    /// Bytes of the transmission records in the file, with their gradients (0 without).
+    /// Bytes of the transmission records in the file, with their visibility records (0
+    /// without).
     pub fn transmission_bytes(&self) -> u64 {
         self.transmission.as_ref().map_or(0, |t| (t.len() * size_of::<PackedTransmission>()) as u64) + self.transmission_visibility.as_ref().map_or(0, |g| (g.len() * size_of::<PackedTransmissionVisibility>()) as u64)
     }

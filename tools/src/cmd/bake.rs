@@ -542,7 +542,7 @@ pub fn run(args: BakeArgs) -> Result<()> {
             t.render_seconds,
             t.fit_seconds
         );
-        if let (Some((e, b)), Some(g)) = (t.without_gradient, t.gradient_median) {
+        if let (Some((e, b)), Some(g)) = (t.without_visibility, t.gradient_median) {
             println!("  transmission visibility: median gradient |g| {g:.3}; without it {:.2}% per texel, {:.2}% over 4x4 blocks", 100.0 * e, 100.0 * b);
         }
         if let Some(o) = &t.openness {
